@@ -1,0 +1,92 @@
+"""The folder `render-depth` writes, and its reader.
+
+Layout (see docs/formats.md)::
+
+    manifest.json
+    dataset.json              camera, category, DoF, label columns, depth encoding, counts
+    labels.csv                one row per image: shard, row, object_id, split, image, labels...
+    preview.png               contact sheet with the true axes drawn
+    shards/shard-00000.npz    depth (N, H, W), part_mask (N, H, W), labels (N, L), ids
+
+Shards are written whole by one chunk of work; a reader streams them one at a time.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from artic.artifacts.formats import read_npz
+from artic.artifacts.manifest import Manifest, read_manifest, verify_file
+from artic.errors import InputError
+
+STAGE = "render-depth"
+INFO = "dataset.json"
+LABELS = "labels.csv"
+PREVIEW = "preview.png"
+
+
+def shard_name(chunk: int) -> str:
+    return f"shards/shard-{chunk:05d}.npz"
+
+
+@dataclass(frozen=True)
+class Shard:
+    """One shard, decoded: depth in float32 metres (0 = no return)."""
+
+    depth: NDArray[np.float32]
+    part_mask: NDArray[np.uint8]
+    labels: NDArray[np.float64]
+    object_id: NDArray[np.int32]
+    image_index: NDArray[np.int16]
+    test: NDArray[np.bool_]
+
+
+def decode_depth(stored: NDArray[Any]) -> NDArray[np.float32]:
+    """uint16 millimetres or float16 metres -> float32 metres."""
+    if stored.dtype == np.uint16:
+        return stored.astype(np.float32) * np.float32(0.001)
+    if stored.dtype == np.float16:
+        return stored.astype(np.float32)
+    raise InputError(f"depth stored as {stored.dtype}; expected uint16 (mm) or float16 (m)")
+
+
+@dataclass(frozen=True)
+class DepthDataset:
+    """A finished `render-depth` output folder."""
+
+    root: Path
+    manifest: Manifest
+    info: dict[str, Any]
+
+    @classmethod
+    def open(cls, root: Path) -> DepthDataset:
+        manifest = read_manifest(root, expected_stage=STAGE)
+        info = json.loads(verify_file(root, manifest, INFO).read_text())
+        return cls(root, manifest, info)
+
+    @property
+    def label_columns(self) -> list[str]:
+        return list(self.info["label_columns"])
+
+    def shard_files(self) -> list[str]:
+        return sorted(k for k in self.manifest.outputs if k.startswith("shards/"))
+
+    def shards(self) -> Iterator[Shard]:
+        """Decoded shards in order, each verified against the manifest as it is read."""
+        for rel in self.shard_files():
+            data = read_npz(verify_file(self.root, self.manifest, rel))
+            yield Shard(
+                depth=decode_depth(data["depth"]),
+                part_mask=data["part_mask"],
+                labels=data["labels"],
+                object_id=data["object_id"],
+                image_index=data["image_index"],
+                test=data["test"],
+            )

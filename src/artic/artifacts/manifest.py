@@ -1,0 +1,139 @@
+"""`manifest.json`: what a stage output holds and how it was made (the stage contract).
+
+A manifest records the stage, the resolved config and its hash, each input's content
+hash, every output file with its size and sha256, package versions, the seed, timings
+and status. `content_hash` (the hash of the output listing) is what downstream stages
+record as their input hash, so regenerating identical data does not invalidate them.
+"""
+
+from __future__ import annotations
+
+import platform
+from datetime import UTC, datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from artic import __version__
+from artic.artifacts.hashing import sha256_file, sha256_json
+from artic.errors import InputError
+
+MANIFEST = "manifest.json"
+LOG = "artic.log"
+FORMAT_VERSION = 1
+_TRACKED_PACKAGES = (
+    "numpy", "scipy", "open3d", "pybullet", "trimesh", "yourdfpy",
+    "hydra-core", "omegaconf", "pydantic", "pillow", "torch",
+)
+
+
+class FileRecord(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    size: int
+    sha256: str
+
+
+class InputRecord(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    path: str
+    stage: str
+    content_hash: str
+
+
+class Manifest(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    format: int = FORMAT_VERSION
+    stage: str
+    status: Literal["complete"] = "complete"
+    artic_version: str = __version__
+    config: dict[str, Any]
+    config_hash: str
+    seed: int | None
+    inputs: dict[str, InputRecord]
+    outputs: dict[str, FileRecord]
+    content_hash: str
+    versions: dict[str, str]
+    started_at: str
+    finished_at: str
+    wall_time_s: float
+    stats: dict[str, float | int | str]
+
+
+def package_versions() -> dict[str, str]:
+    """Versions of Python, artic and the numerical packages that shape the outputs."""
+    out = {"python": platform.python_version(), "artic": __version__}
+    for name in _TRACKED_PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def now_iso() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def list_outputs(folder: Path) -> dict[str, FileRecord]:
+    """Size and sha256 of every file under `folder` except the manifest and the log,
+    keyed by POSIX relative path, sorted."""
+    records: dict[str, FileRecord] = {}
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        rel = path.relative_to(folder).as_posix()
+        if rel in (MANIFEST, LOG) or rel.startswith("."):
+            continue
+        records[rel] = FileRecord(size=path.stat().st_size, sha256=sha256_file(path))
+    return records
+
+
+def outputs_hash(outputs: dict[str, FileRecord]) -> str:
+    return sha256_json({k: v.sha256 for k, v in outputs.items()})
+
+
+def read_manifest(folder: Path, expected_stage: str | None = None) -> Manifest:
+    """The manifest of a finished stage output, or InputError naming what is wrong."""
+    if not folder.exists():
+        raise InputError(f"{folder}: no such folder")
+    if not folder.is_dir():
+        raise InputError(f"{folder}: not a folder")
+    path = folder / MANIFEST
+    if not path.is_file():
+        raise InputError(f"{folder}: not a stage output (no {MANIFEST})")
+    try:
+        manifest = Manifest.model_validate_json(path.read_text())
+    except (ValidationError, ValueError) as err:
+        raise InputError(f"{path}: malformed manifest ({_first_line(err)})") from None
+    if expected_stage is not None and manifest.stage != expected_stage:
+        raise InputError(
+            f"{folder}: written by stage '{manifest.stage}', expected a '{expected_stage}' output"
+        )
+    return manifest
+
+
+def verify_file(folder: Path, manifest: Manifest, rel: str) -> Path:
+    """Path of output `rel` after checking its size and sha256 against the manifest."""
+    record = manifest.outputs.get(rel)
+    path = folder / rel
+    if record is None:
+        raise InputError(f"{path}: not listed in {folder / MANIFEST}")
+    if not path.is_file():
+        raise InputError(f"{path}: missing (listed in {MANIFEST}); rerun the stage with --force")
+    if path.stat().st_size != record.size or sha256_file(path) != record.sha256:
+        raise InputError(
+            f"{path}: corrupted (sha256 differs from {MANIFEST}); rerun the stage with --force"
+        )
+    return path
+
+
+def verify_outputs(folder: Path, manifest: Manifest) -> None:
+    """Check every listed output file; InputError at the first missing or corrupted one."""
+    for rel in manifest.outputs:
+        verify_file(folder, manifest, rel)
+
+
+def _first_line(err: Exception) -> str:
+    text = str(err).strip().splitlines()
+    return text[0] if text else type(err).__name__

@@ -1,0 +1,1 @@
+"""The `artic` command line: one thin Typer module per subcommand."""

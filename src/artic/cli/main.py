@@ -1,0 +1,150 @@
+"""`artic`: the command-line entry point.
+
+Subcommands are registered here and import their heavy dependencies (numpy, open3d,
+pybullet, hydra) only when they run, so `artic --help` answers quickly.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import logging
+import sys
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import typer
+
+from artic import __version__
+
+app = typer.Typer(
+    name="artic",
+    help="Structured robotic manipulation: articulated-object datasets, depth rendering, "
+    "kinematic models. Each subcommand is a stage: it reads files and writes one output "
+    "folder with a manifest.json. Config overrides are Hydra-style KEY=VALUE arguments.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+#: subcommand -> module exposing STAGE (imported only when the subcommand runs)
+STAGE_MODULES: dict[str, str] = {
+    "generate-dataset": "artic.cli.generate_dataset",
+    "render-depth": "artic.cli.render_depth",
+}
+
+F = TypeVar("F", bound=Callable[..., Any])
+_OVERRIDES = typer.Argument(None, help="Hydra overrides, e.g. category=drawer dataset.objects=50")
+_CFG = typer.Option(False, "--cfg", help="Print the resolved config and exit.")
+_FORCE = typer.Option(False, "--force", help="Recompute even if the output is up to date.")
+_EXTRA = {"allow_extra_args": False, "ignore_unknown_options": True}
+
+
+def load_stage(command: str) -> Any:
+    """The `Stage` behind a subcommand name."""
+    return importlib.import_module(STAGE_MODULES[command]).STAGE
+
+
+def handle_errors(fn: F) -> F:
+    """Map failures to exit codes: bad input 2 (one line), Ctrl-C 130, internal 1."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        from artic.cli.stage_runner import InternalError
+        from artic.errors import InputError, Interrupted
+
+        try:
+            return fn(*args, **kwargs)
+        except InputError as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(2) from None
+        except Interrupted as err:
+            typer.echo(str(err), err=True)
+            raise typer.Exit(130) from None
+        except KeyboardInterrupt:
+            typer.echo("interrupted", err=True)
+            raise typer.Exit(130) from None
+        except InternalError as err:
+            where = f" (traceback in {err.log_path})" if err.log_path else ""
+            typer.echo(f"internal error: {err}{where}", err=True)
+            raise typer.Exit(1) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, force: bool) -> None:
+    from artic.cli.summary import print_result
+    from artic.cli.stage_runner import resolved_config, run_stage
+
+    stage = load_stage(command)
+    if cfg:
+        import yaml
+
+        typer.echo(yaml.safe_dump(resolved_config(stage, list(overrides or [])), sort_keys=False))
+        return
+    print_result(command, run_stage(stage, list(overrides or []), force=force))
+
+
+@app.command("generate-dataset", context_settings=_EXTRA)
+@handle_errors
+def generate_dataset(
+    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
+) -> None:
+    """Procedural articulated objects (Appendix A): URDF + OBJ meshes + ObjectSpec JSON.
+
+    Example: artic generate-dataset category=refrigerator dataset.objects=200
+    """
+    run_stage_command("generate-dataset", overrides, cfg, force)
+
+
+@app.command("render-depth", context_settings=_EXTRA)
+@handle_errors
+def render_depth(
+    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
+) -> None:
+    """Labelled depth images across each object's articulation (section 3.2.3).
+
+    Example: artic render-depth dataset=artifacts/objects/refrigerator
+    """
+    run_stage_command("render-depth", overrides, cfg, force)
+
+
+@app.command("pipeline")
+@handle_errors
+def pipeline(
+    name: str = typer.Argument(..., help="stages/NAME.yaml, or a path to a pipeline file"),
+    force: bool = typer.Option(False, "--force", help="Recompute every stage."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="List the stages and exit."),
+) -> None:
+    """Run a chain of stages from stages/NAME.yaml, skipping those that are up to date.
+
+    Example: artic pipeline smoke
+    """
+    from artic.cli.pipeline import run_pipeline
+
+    run_pipeline(name, force=force, dry_run=dry_run)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"artic {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Only warnings and errors."),
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Print the version."
+    ),
+) -> None:
+    logging.basicConfig(
+        level=logging.WARNING if quiet else logging.INFO,
+        format="%(message)s",
+        stream=sys.stderr,
+        force=True,
+    )
+
+
+def main() -> None:
+    app()

@@ -1,0 +1,1 @@
+"""Hydra composition of `conf/` and the pydantic schemas that validate it."""

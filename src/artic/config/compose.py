@@ -1,0 +1,82 @@
+"""Compose a stage's config with Hydra's Compose API and validate it with pydantic.
+
+Each stage has its own config root `conf/<stage>/` (primary `config.yaml` plus groups
+only that stage has, such as `debug/` and `experiment/`); groups shared by stages
+(`camera/`, `category/`, `noise/`) live in `conf/common/`, which is added to Hydra's
+search path. Separate roots let one stage take `dataset=PATH` as a value while another
+has a `dataset` config group.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ValidationError
+
+from artic.errors import InputError
+
+M = TypeVar("M", bound=BaseModel)
+
+_RESOLVERS_REGISTERED = False
+
+
+def conf_dir() -> Path:
+    """The `conf/` folder: `$ARTIC_CONF` if set, else the repository's `conf/`."""
+    env = os.environ.get("ARTIC_CONF")
+    path = Path(env) if env else Path(__file__).resolve().parents[3] / "conf"
+    if not (path / "common").is_dir():
+        raise InputError(f"{path}: not an artic conf/ folder (set ARTIC_CONF)")
+    return path
+
+
+def _register_resolvers() -> None:
+    global _RESOLVERS_REGISTERED
+    if _RESOLVERS_REGISTERED:
+        return
+    from omegaconf import OmegaConf
+
+    # ${basename:artifacts/objects/microwave} -> microwave
+    OmegaConf.register_new_resolver(
+        "basename", lambda p: Path(str(p).rstrip("/")).name, replace=True
+    )
+    _RESOLVERS_REGISTERED = True
+
+
+def compose(stage: str, overrides: list[str]) -> dict[str, Any]:
+    """The resolved config of `stage` (a folder name under conf/) with Hydra overrides."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.errors import HydraException
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+
+    _register_resolvers()
+    root = conf_dir()
+    search = f"hydra.searchpath=[file://{root / 'common'}]"
+    try:
+        with initialize_config_dir(config_dir=str(root / stage), version_base=None):
+            cfg = hydra_compose("config", overrides=[*overrides, search])
+        container = OmegaConf.to_container(cfg, resolve=True)
+    except (HydraException, OmegaConfBaseException, ValueError) as err:
+        raise InputError(f"config: {_one_line(err)}") from None
+    assert isinstance(container, dict)
+    return {str(k): v for k, v in container.items() if k != "hydra"}
+
+
+def validate(schema: type[M], config: dict[str, Any]) -> M:
+    """`schema.model_validate(config)`, or InputError naming the first bad field."""
+    try:
+        return schema.model_validate(config)
+    except ValidationError as err:
+        first = err.errors()[0]
+        field = ".".join(str(p) for p in first["loc"]) or "config"
+        got = first.get("input")
+        shown = "" if isinstance(got, dict | list) else f" (got {got!r})"
+        raise InputError(f"config field {field}: {first['msg']}{shown}") from None
+
+
+def _one_line(err: Exception) -> str:
+    lines = [ln.strip() for ln in str(err).strip().splitlines() if ln.strip()]
+    return " ".join(lines[:2]) if lines else type(err).__name__

@@ -1,0 +1,23 @@
+"""The two kinds of failure artic distinguishes.
+
+`InputError` is the user's to fix (a missing file, a value out of range): the CLI prints
+its one-line message on stderr and exits with code 2, never a traceback. Anything else
+is an internal failure: exit code 1 and the traceback in the stage's log file.
+"""
+
+from __future__ import annotations
+
+
+class InputError(Exception):
+    """Bad input: a file, path or config field that is missing, malformed or out of range.
+
+    The message is one line naming the file or field and what was expected.
+    """
+
+    exit_code = 2
+
+
+class Interrupted(Exception):
+    """Work stopped by the user (Ctrl-C); finished shards are kept for a resume."""
+
+    exit_code = 130

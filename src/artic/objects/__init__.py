@@ -1,0 +1,1 @@
+"""Procedural articulated objects: sample a spec, build its parts, write it as URDF."""

@@ -1,0 +1,129 @@
+"""In-memory articulated objects: links with triangle meshes, joints, forward kinematics.
+
+This is what `build(spec)` returns and what the URDF writer and the depth renderers
+consume. Everything is pure numpy; nothing here reads or writes files.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from artic.geometry.transforms import axis_angle, make_transform
+
+JointType = Literal["revolute", "prismatic", "fixed"]
+
+
+class TriangleMesh(NamedTuple):
+    """A triangle mesh in its link's frame.
+
+    vertices: (V, 3) float64, metres. triangles: (F, 3) int32, counter-clockwise seen
+    from outside (outward normals).
+    """
+
+    vertices: NDArray[np.float64]
+    triangles: NDArray[np.int32]
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """Mass properties of a link, in the link frame: mass (kg), centre of mass (3,),
+    inertia tensor (3, 3) about the centre of mass, kg m^2."""
+
+    mass: float
+    center_of_mass: NDArray[np.float64]
+    inertia: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Link:
+    """A rigid part. `role` is its part in the kinematic graph (section 2.3):
+    "body", "door", "drawer" or "handle"."""
+
+    name: str
+    role: str
+    mesh: TriangleMesh
+    inertial: Inertial
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint between `parent` and `child` links (URDF semantics).
+
+    origin: (4, 4) pose of the joint frame (= the child link frame at q = 0) in the
+    parent link frame. axis: (3,) unit vector in the joint frame. limits: (lower, upper)
+    in radians (revolute) or metres (prismatic); (0, 0) for fixed joints.
+    """
+
+    name: str
+    type: JointType
+    parent: str
+    child: str
+    origin: NDArray[np.float64]
+    axis: NDArray[np.float64] = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    limits: tuple[float, float] = (0.0, 0.0)
+    damping: float = 0.0
+    friction: float = 0.0
+
+    def motion(self, q: float) -> NDArray[np.float64]:
+        """(4, 4) transform of the child frame in the joint frame at configuration q."""
+        if self.type == "revolute":
+            return make_transform(rotation=axis_angle(self.axis, q))
+        if self.type == "prismatic":
+            return make_transform(translation=self.axis * q)
+        return np.eye(4)
+
+
+@dataclass(frozen=True)
+class ArticulatedObject:
+    """A kinematic tree of links. `base_pose` (4, 4) places the root link in the world
+    (= camera body) frame. Links are ordered: the root first, then in the order their
+    joints appear; a link's position in `links` is its part id (0 = body)."""
+
+    name: str
+    links: tuple[Link, ...]
+    joints: tuple[Joint, ...]
+    base_pose: NDArray[np.float64]
+
+    @property
+    def movable_joints(self) -> tuple[Joint, ...]:
+        """Revolute and prismatic joints, in order: the object's degrees of freedom."""
+        return tuple(j for j in self.joints if j.type != "fixed")
+
+    @property
+    def dof(self) -> int:
+        return len(self.movable_joints)
+
+    def link_index(self, name: str) -> int:
+        for i, link in enumerate(self.links):
+            if link.name == name:
+                return i
+        raise KeyError(name)
+
+    def link_poses(self, configuration: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """Forward kinematics: world pose (4, 4) of every link, in `links` order.
+
+        configuration: (dof,) values for `movable_joints`, radians or metres.
+        """
+        q = np.asarray(configuration, dtype=np.float64).reshape(-1)
+        if q.shape[0] != self.dof:
+            raise ValueError(f"configuration has {q.shape[0]} values, object has {self.dof} DoF")
+        values = dict(zip((j.name for j in self.movable_joints), q, strict=True))
+        poses: dict[str, NDArray[np.float64]] = {self.links[0].name: self.base_pose}
+        for joint in self.joints:  # parents precede children
+            motion = joint.motion(values.get(joint.name, 0.0))
+            poses[joint.child] = poses[joint.parent] @ joint.origin @ motion
+        return [poses[link.name] for link in self.links]
+
+    def joint_frames(self, configuration: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """World pose (4, 4) of each movable joint's frame at `configuration`.
+
+        The joint frame is fixed to the parent link, so for a 1-level tree it does not
+        depend on the joint's own value.
+        """
+        poses = self.link_poses(configuration)
+        by_name = {link.name: pose for link, pose in zip(self.links, poses, strict=True)}
+        return [by_name[j.parent] @ j.origin for j in self.movable_joints]
