@@ -55,7 +55,8 @@ class Joint:
 
     origin: (4, 4) pose of the joint frame (= the child link frame at q = 0) in the
     parent link frame. axis: (3,) unit vector in the joint frame. limits: (lower, upper)
-    in radians (revolute) or metres (prismatic); (0, 0) for fixed joints.
+    in radians (revolute) or metres (prismatic); (0, 0) for fixed joints. effort (N m or
+    N) and velocity (rad/s or m/s) limits; damping and friction for the simulator.
     """
 
     name: str
@@ -65,6 +66,8 @@ class Joint:
     origin: NDArray[np.float64]
     axis: NDArray[np.float64] = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     limits: tuple[float, float] = (0.0, 0.0)
+    effort: float = 0.0
+    velocity: float = 0.0
     damping: float = 0.0
     friction: float = 0.0
 

@@ -1,0 +1,166 @@
+"""The six object categories of the thesis' synthetic dataset (section 3.2.3, Appendix A)
+and the registry that maps a category name to its builder.
+
+`build(spec)` is pure: the spec fully determines the object. Builders share the part
+constructors of `artic.objects.parts`; conventions (frames, hinge sides, joint order)
+are written down in `docs/objects.md`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from artic.objects.model import ArticulatedObject
+from artic.objects.parts import (
+    Box,
+    Interval,
+    assemble,
+    drawer,
+    flap_door,
+    shell_boxes,
+    vertical_door,
+)
+from artic.objects.spec import ObjectSpec
+
+Builder = Callable[[ObjectSpec], ArticulatedObject]
+
+CATEGORIES: dict[str, Builder] = {}
+"""Registered builders by category name; fill it with `@register_category`."""
+
+
+def register_category(name: str) -> Callable[[Builder], Builder]:
+    """Decorator: register `builder(spec) -> ArticulatedObject` under `name`."""
+
+    def decorate(builder: Builder) -> Builder:
+        if name in CATEGORIES:
+            raise ValueError(f"category {name!r} is already registered")
+        CATEGORIES[name] = builder
+        return builder
+
+    return decorate
+
+
+def get_builder(name: str) -> Builder:
+    """The builder registered as `name`; KeyError naming the known categories otherwise."""
+    try:
+        return CATEGORIES[name]
+    except KeyError:
+        known = ", ".join(sorted(CATEGORIES))
+        raise KeyError(f"unknown category {name!r}; known categories: {known}") from None
+
+
+def build(spec: ObjectSpec) -> ArticulatedObject:
+    """Meshes, links and joints of the object `spec` describes (pure, deterministic)."""
+    obj = get_builder(spec.category)(spec)
+    if obj.dof != spec.dof:
+        raise ValueError(f"{spec.category}: builder made {obj.dof} DoF, spec says {spec.dof}")
+    kinds = {joint.type for joint in obj.movable_joints}
+    if kinds != {spec.joint_type}:
+        raise ValueError(f"joint_type: {spec.category} builds {kinds}, spec says {spec.joint_type}")
+    return obj
+
+
+def _front_x(spec: ObjectSpec) -> float:
+    return -spec.depth / 2
+
+
+def _shell(spec: ObjectSpec) -> list[Box]:
+    return shell_boxes(spec.depth, spec.width, spec.height, spec.parts.panel_thickness)
+
+
+def _panel_split(spec: ObjectSpec, panel_side: int) -> tuple[Interval, Interval]:
+    """Split the front width into (door span, control-panel span) along y; the panel strip
+    (`control_panel_fraction` of the width) is on the +y side if panel_side > 0."""
+    half, gap = spec.width / 2, spec.parts.gap
+    panel = spec.parts.control_panel_fraction * spec.width
+    if panel_side > 0:
+        return (-half, half - panel - gap), (half - panel, half)
+    return (-half + panel + gap, half), (-half, -half + panel)
+
+
+def _control_panel(spec: ObjectSpec, span_y: Interval) -> Box:
+    """A control-panel plate on the body front, flush with the closed door's face."""
+    front = _front_x(spec)
+    return Box((front - spec.parts.door_thickness, front), span_y, (0.0, spec.height))
+
+
+@register_category("cabinet")
+def build_cabinet(spec: ObjectSpec) -> ArticulatedObject:
+    """One full-front door, hinge side from `spec.chirality`."""
+    half = spec.width / 2
+    door = vertical_door(
+        "door_0", spec.parts, _front_x(spec), (-half, half), (0.0, spec.height), spec.chirality
+    )
+    return assemble(spec, _shell(spec), [door])
+
+
+@register_category("cabinet2")
+def build_cabinet2(spec: ObjectSpec) -> ArticulatedObject:
+    """Two half-width doors hinged at the outer edges: joint 0 the -y door (axis +z),
+    joint 1 the +y door (axis -z). Chirality has no meaning here."""
+    half, gap = spec.width / 2, spec.parts.gap / 2
+    heights = (0.0, spec.height)
+    doors = [
+        vertical_door("door_0", spec.parts, _front_x(spec), (-half, -gap), heights, 1),
+        vertical_door("door_1", spec.parts, _front_x(spec), (gap, half), heights, -1),
+    ]
+    return assemble(spec, _shell(spec), doors)
+
+
+@register_category("microwave")
+def build_microwave(spec: ObjectSpec) -> ArticulatedObject:
+    """A door beside a control-panel strip on its free-edge side; hinge from chirality
+    (+1: hinge at -y, panel at +y)."""
+    door_y, panel_y = _panel_split(spec, panel_side=spec.chirality)
+    door = vertical_door(
+        "door_0", spec.parts, _front_x(spec), door_y, (0.0, spec.height), spec.chirality
+    )
+    return assemble(spec, [*_shell(spec), _control_panel(spec, panel_y)], [door])
+
+
+@register_category("toaster")
+def build_toaster(spec: ObjectSpec) -> ArticulatedObject:
+    """A bottom-hinged door (axis (0, -1, 0)) beside a control-panel strip on the -y
+    (camera-right) side. Chirality has no meaning here."""
+    door_y, panel_y = _panel_split(spec, panel_side=-1)
+    door = flap_door("door_0", spec.parts, _front_x(spec), door_y, (0.0, spec.height))
+    return assemble(spec, [*_shell(spec), _control_panel(spec, panel_y)], [door])
+
+
+@register_category("drawer")
+def build_drawer(spec: ObjectSpec) -> ArticulatedObject:
+    """A drawer inside the shell opening, front flush with the body front, `gap`
+    clearance to the walls; prismatic along (-1, 0, 0)."""
+    p = spec.parts
+    clear = p.panel_thickness + p.gap
+    half = spec.width / 2
+    part = drawer(
+        "drawer_0",
+        p,
+        (_front_x(spec), spec.depth / 2 - clear),
+        (-half + clear, half - clear),
+        (clear, spec.height - clear),
+    )
+    return assemble(spec, _shell(spec), [part])
+
+
+@register_category("refrigerator")
+def build_refrigerator(spec: ObjectSpec) -> ArticulatedObject:
+    """Fridge door below (joint 0), freezer door above (joint 1, `freezer_fraction` of
+    the height), both hinged on the chirality side; a shelf divides the compartments."""
+    p = spec.parts
+    split = spec.height * (1.0 - p.freezer_fraction)
+    half, front = spec.width / 2, _front_x(spec)
+    doors = [
+        vertical_door("door_0", p, front, (-half, half), (0.0, split - p.gap / 2), spec.chirality),
+        vertical_door(
+            "door_1", p, front, (-half, half), (split + p.gap / 2, spec.height), spec.chirality
+        ),
+    ]
+    wall = p.panel_thickness
+    divider = Box(
+        (front, spec.depth / 2 - wall),
+        (-half + wall, half - wall),
+        (split - wall / 2, split + wall / 2),
+    )
+    return assemble(spec, [*_shell(spec), divider], doors)

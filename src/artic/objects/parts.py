@@ -1,0 +1,315 @@
+"""Building blocks of the procedural objects: boxes, watertight meshes, mass properties,
+doors, drawers, handles, and the assembly of a body plus its moving parts.
+
+Every part is a union of axis-aligned boxes. `union_mesh` turns such a union into one
+closed, outward-oriented triangle mesh (faces between occupied and empty cells of the
+grid the box faces span), so each link mesh is watertight and its mass properties are
+exact. Frames follow `docs/objects.md`: the body frame has its origin at the centre of
+the body's bottom face, x from the front into the object, z up; the front face of the
+body is the plane x = -depth / 2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from artic.geometry.transforms import make_transform
+from artic.objects.model import ArticulatedObject, Inertial, Joint, Link, TriangleMesh
+from artic.objects.spec import Chirality, JointKind, ObjectSpec, PartsConfig
+
+Interval = tuple[float, float]
+BarDirection = Literal["y", "z"]
+MovingRole = Literal["door", "drawer"]
+
+_DECIMALS = 9  # box coordinates are snapped to 1 nm so touching faces coincide exactly
+
+
+class Box(NamedTuple):
+    """An axis-aligned box given by its extent along x, y and z: (min, max) metres each."""
+
+    x: Interval
+    y: Interval
+    z: Interval
+
+
+class HandleMount(NamedTuple):
+    """Where a handle sits on its moving part: `position` (3,) on the part's front face,
+    in the part's link frame, metres; the bar runs along `direction`, `length` metres."""
+
+    position: NDArray[np.float64]
+    direction: BarDirection
+    length: float
+
+
+class MovingPart(NamedTuple):
+    """A door or drawer: its joint in the body frame and its boxes in the joint frame.
+
+    origin: (3,) joint-frame origin in the body frame (a point on the axis), metres.
+    axis: (3,) unit joint axis (joint frame = body orientation). boxes: in the joint
+    frame, which is also the part's link frame.
+    """
+
+    name: str
+    role: MovingRole
+    joint_type: JointKind
+    origin: NDArray[np.float64]
+    axis: NDArray[np.float64]
+    boxes: tuple[Box, ...]
+    handle: HandleMount
+
+
+def union_mesh(boxes: Sequence[Box]) -> TriangleMesh:
+    """One closed triangle mesh of the union of `boxes` (metres), outward normals.
+
+    The box faces span a rectilinear grid; a grid face between an occupied and an
+    empty cell becomes two triangles. Vertices are shared grid points, so boxes that
+    touch merge into one solid and the result is watertight (given no two boxes touch
+    along an edge only).
+    """
+    if not boxes:
+        raise ValueError("union_mesh needs at least one box")
+    bounds = np.round(np.array(boxes, dtype=np.float64), _DECIMALS)  # (B, 3, 2)
+    if np.any(bounds[:, :, 0] >= bounds[:, :, 1]):
+        raise ValueError("every box needs min < max along each axis")
+    grids = [np.unique(bounds[:, axis, :]) for axis in range(3)]
+    centres = [0.5 * (g[:-1] + g[1:]) for g in grids]
+    occupied = np.zeros(tuple(len(c) for c in centres), dtype=bool)
+    for box in bounds:
+        inside = [(c > box[a, 0]) & (c < box[a, 1]) for a, c in enumerate(centres)]
+        occupied |= inside[0][:, None, None] & inside[1][None, :, None] & inside[2][None, None, :]
+    quads = _boundary_quads(np.pad(occupied, 1), tuple(len(g) for g in grids))
+    used, faces = np.unique(quads, return_inverse=True)
+    faces = faces.reshape(-1, 4)
+    corner = np.stack(np.unravel_index(used, tuple(len(g) for g in grids)), axis=1)
+    vertices = np.stack([grids[a][corner[:, a]] for a in range(3)], axis=1).astype(np.float64)
+    triangles = np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
+    return TriangleMesh(vertices=vertices, triangles=triangles.astype(np.int32))
+
+
+def _boundary_quads(padded: NDArray[np.bool_], grid_shape: tuple[int, ...]) -> NDArray[np.int64]:
+    """(F, 4) flat grid-point ids of every occupied/empty cell interface, counter-clockwise
+    seen from the empty side. padded: occupancy with a one-cell empty border."""
+    quads = []
+    for a in range(3):
+        b, c = (a + 1) % 3, (a + 2) % 3  # (b, c) counter-clockwise about +a
+        before = [slice(1, -1)] * 3
+        after = [slice(1, -1)] * 3
+        before[a], after[a] = slice(0, -1), slice(1, None)
+        lower, upper = padded[tuple(before)], padded[tuple(after)]
+        for mask, flip in ((lower & ~upper, False), (upper & ~lower, True)):
+            cells = np.argwhere(mask)  # column a: plane index; b, c: lower grid corner
+            corners = []
+            for db, dc in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                point = cells.copy()
+                point[:, b] += db
+                point[:, c] += dc
+                corners.append(np.ravel_multi_index(tuple(point.T), grid_shape))
+            quad = np.stack(corners, axis=1)
+            quads.append(quad[:, ::-1] if flip else quad)
+    return np.concatenate(quads)
+
+
+def mass_properties(mesh: TriangleMesh, density: float) -> Inertial:
+    """Mass (kg), centre of mass (3,) and inertia (3, 3) about it, kg m^2, of a closed mesh
+    of uniform `density` (kg/m^3), computed by trimesh in the mesh's frame."""
+    import trimesh  # lazy: heavy import, only needed when building
+
+    solid = trimesh.Trimesh(mesh.vertices, mesh.triangles, process=False)
+    if not solid.is_watertight:
+        raise ValueError("mass properties need a watertight mesh")
+    solid.density = density
+    inertia = np.asarray(solid.moment_inertia, dtype=np.float64)
+    return Inertial(
+        mass=float(solid.mass),
+        center_of_mass=np.asarray(solid.center_mass, dtype=np.float64) + 0.0,
+        inertia=0.5 * (inertia + inertia.T) + 0.0,
+    )
+
+
+def shell_boxes(depth: float, width: float, height: float, wall: float) -> list[Box]:
+    """Hollow body open at the front (x = -depth/2): back, right (-y), left (+y), bottom
+    and top panels of thickness `wall`, non-overlapping. Body frame, metres."""
+    x0, x1, y0, y1 = -depth / 2, depth / 2, -width / 2, width / 2
+    inner_x = (x0, x1 - wall)
+    inner_y = (y0 + wall, y1 - wall)
+    return [
+        Box((x1 - wall, x1), (y0, y1), (0.0, height)),
+        Box(inner_x, (y0, y0 + wall), (0.0, height)),
+        Box(inner_x, (y1 - wall, y1), (0.0, height)),
+        Box(inner_x, inner_y, (0.0, wall)),
+        Box(inner_x, inner_y, (height - wall, height)),
+    ]
+
+
+def handle_length(extent: float, parts: PartsConfig) -> float:
+    """Bar length, metres: `handle_length`, capped at `handle_fraction` of `extent`."""
+    length = min(parts.handle_length, parts.handle_fraction * extent)
+    if length < 3.0 * parts.handle_thickness:
+        raise ValueError(f"handle_length: a {extent} m part leaves no room for a handle")
+    return length
+
+
+def handle_boxes(mount: HandleMount, parts: PartsConfig) -> list[Box]:
+    """A bar of square section standing `handle_standoff` in front of the surface (-x),
+    on two end posts; handle frame at the mount point on the surface. Metres."""
+    half, side, standoff = mount.length / 2, parts.handle_thickness, parts.handle_standoff
+    across = (-side / 2, side / 2)
+    pieces = [
+        ((-(standoff + side), -standoff), (-half, half)),  # bar
+        ((-standoff, 0.0), (-half, -half + side)),  # post
+        ((-standoff, 0.0), (half - side, half)),  # post
+    ]
+    if mount.direction == "y":
+        return [Box(x, along, across) for x, along in pieces]
+    return [Box(x, across, along) for x, along in pieces]
+
+
+def vertical_door(
+    name: str,
+    parts: PartsConfig,
+    front_x: float,
+    span_y: Interval,
+    span_z: Interval,
+    hinge: Chirality,
+) -> MovingPart:
+    """A door in front of the plane x = `front_x`, covering `span_y` x `span_z` (body
+    frame). hinge +1: hinge on the low-y edge, axis +z; -1: high-y edge, axis -z. Either
+    way q > 0 swings the free edge towards -x (out of the body, towards the camera).
+    Joint origin: hinge edge, door bottom, on the body front. Handle: vertical bar
+    `handle_inset` from the free edge, at mid-height."""
+    width, height = span_y[1] - span_y[0], span_z[1] - span_z[0]
+    hinge_y = span_y[0] if hinge == 1 else span_y[1]
+    thick = parts.door_thickness
+    panel = Box((-thick, 0.0), (min(0.0, hinge * width), max(0.0, hinge * width)), (0.0, height))
+    inset = min(parts.handle_inset, width / 4)
+    mount = HandleMount(
+        position=np.array([-thick, hinge * (width - inset), height / 2]),
+        direction="z",
+        length=handle_length(height, parts),
+    )
+    return MovingPart(
+        name=name,
+        role="door",
+        joint_type="revolute",
+        origin=np.array([front_x, hinge_y, span_z[0]]),
+        axis=np.array([0.0, 0.0, float(hinge)]),
+        boxes=(panel,),
+        handle=mount,
+    )
+
+
+def flap_door(
+    name: str, parts: PartsConfig, front_x: float, span_y: Interval, span_z: Interval
+) -> MovingPart:
+    """A door hinged at its bottom edge (toaster oven), in front of x = `front_x`.
+
+    Axis (0, -1, 0), so q > 0 drops the door outwards and down. Joint origin: centre of
+    the bottom edge on the body front. Handle: horizontal bar near the top edge."""
+    width, height = span_y[1] - span_y[0], span_z[1] - span_z[0]
+    thick = parts.door_thickness
+    panel = Box((-thick, 0.0), (-width / 2, width / 2), (0.0, height))
+    inset = min(parts.handle_inset, height / 4)
+    mount = HandleMount(
+        position=np.array([-thick, 0.0, height - inset]),
+        direction="y",
+        length=handle_length(width, parts),
+    )
+    return MovingPart(
+        name=name,
+        role="door",
+        joint_type="revolute",
+        origin=np.array([front_x, 0.5 * (span_y[0] + span_y[1]), span_z[0]]),
+        axis=np.array([0.0, -1.0, 0.0]),
+        boxes=(panel,),
+        handle=mount,
+    )
+
+
+def drawer(
+    name: str, parts: PartsConfig, span_x: Interval, span_y: Interval, span_z: Interval
+) -> MovingPart:
+    """An open-top box occupying `span_x` x `span_y` x `span_z` (body frame) when closed;
+    its front face is the plane x = span_x[0]. Front `door_thickness`, other walls
+    `panel_thickness`. Axis (-1, 0, 0): q > 0 pulls it out towards the camera. Joint
+    origin: centre of the front face. Handle: horizontal bar centred on the front."""
+    length, width, height = (s[1] - s[0] for s in (span_x, span_y, span_z))
+    front, wall = parts.door_thickness, parts.panel_thickness
+    hw, hh = width / 2, height / 2
+    inner_x = (front, length - wall)
+    boxes = (
+        Box((0.0, front), (-hw, hw), (-hh, hh)),  # front
+        Box((length - wall, length), (-hw, hw), (-hh, hh)),  # back
+        Box(inner_x, (-hw, -hw + wall), (-hh, hh)),  # side
+        Box(inner_x, (hw - wall, hw), (-hh, hh)),  # side
+        Box(inner_x, (-hw + wall, hw - wall), (-hh, -hh + wall)),  # bottom
+    )
+    centre = [span_x[0], 0.5 * (span_y[0] + span_y[1]), 0.5 * (span_z[0] + span_z[1])]
+    return MovingPart(
+        name=name,
+        role="drawer",
+        joint_type="prismatic",
+        origin=np.array(centre),
+        axis=np.array([-1.0, 0.0, 0.0]),
+        boxes=boxes,
+        handle=HandleMount(np.zeros(3), "y", handle_length(width, parts)),
+    )
+
+
+def _link(name: str, role: str, boxes: Sequence[Box], density: float) -> Link:
+    mesh = union_mesh(boxes)
+    return Link(name=name, role=role, mesh=mesh, inertial=mass_properties(mesh, density))
+
+
+def assemble(
+    spec: ObjectSpec, body: Sequence[Box], moving: Sequence[MovingPart]
+) -> ArticulatedObject:
+    """Links and joints in part-id order: body, then each moving part and its handle.
+
+    Joint k of the object is `joint_<k>` (body -> part); each handle hangs on a fixed
+    joint `handle_<k>_fixed` at its mount point. Densities, damping, friction and
+    effort/velocity limits come from `spec.parts`; limits from `spec.joint_limits`.
+    """
+    if len(moving) != spec.dof:
+        raise ValueError(f"{spec.category}: built {len(moving)} joints, spec says dof {spec.dof}")
+    p = spec.parts
+    links = [_link("body", "body", body, p.body_density)]
+    joints: list[Joint] = []
+    for k, part in enumerate(moving):
+        density = p.drawer_density if part.role == "drawer" else p.door_density
+        links.append(_link(part.name, part.role, part.boxes, density))
+        joints.append(
+            Joint(
+                name=f"joint_{k}",
+                type=part.joint_type,
+                parent="body",
+                child=part.name,
+                origin=make_transform(translation=part.origin),
+                axis=part.axis,
+                limits=spec.joint_limits[k],
+                damping=p.joint_damping,
+                friction=p.joint_friction,
+                effort=p.joint_effort,
+                velocity=p.joint_velocity,
+            )
+        )
+        handle = f"handle_{k}"
+        links.append(_link(handle, "handle", handle_boxes(part.handle, p), p.handle_density))
+        joints.append(
+            Joint(
+                name=f"{handle}_fixed",
+                type="fixed",
+                parent=part.name,
+                child=handle,
+                origin=make_transform(translation=part.handle.position),
+            )
+        )
+    return ArticulatedObject(
+        name=f"{spec.category}_{spec.index}",
+        links=tuple(links),
+        joints=tuple(joints),
+        base_pose=spec.pose.matrix(),
+    )
