@@ -10,7 +10,7 @@ each owns different chunks. When every chunk is done, the stage writes its summa
 files and `manifest.json`, and `out.partial/` is renamed to `out`, replacing the
 previous output only at that moment.
 
-The config hash is stored in `out.partial/config_hash`; a work area left by a run with
+The config hash is stored in `out.partial/.state/config_hash`; a work area left by a run with
 another config is discarded, never mixed.
 """
 
@@ -22,9 +22,11 @@ from pathlib import Path
 
 from artic.errors import InputError
 
-_MARKERS = ".chunks"
-_TMP = ".tmp"
-_HASH = "config_hash"
+# bookkeeping, all under one hidden folder that is never part of the outputs
+_STATE = ".state"
+_MARKERS = f"{_STATE}/chunks"
+_TMP = f"{_STATE}/tmp"
+_HASH = f"{_STATE}/config_hash"
 
 
 class WorkDir:
@@ -41,7 +43,7 @@ class WorkDir:
             if self.path.exists() and (fresh or self._stored_hash() != config_hash):
                 shutil.rmtree(self.path)
             (self.path / _MARKERS).mkdir(parents=True, exist_ok=True)
-            (self.path / _TMP).mkdir(exist_ok=True)
+            (self.path / _TMP).mkdir(parents=True, exist_ok=True)
             (self.path / _HASH).write_text(config_hash + "\n")
         except OSError as err:
             raise InputError(f"out: cannot write to {self.out} ({err.strerror})") from None
@@ -77,9 +79,7 @@ class WorkDir:
 
     def publish(self) -> None:
         """Remove the bookkeeping and rename the work area to the output folder."""
-        for name in (_MARKERS, _TMP):
-            shutil.rmtree(self.path / name, ignore_errors=True)
-        (self.path / _HASH).unlink(missing_ok=True)
+        shutil.rmtree(self.path / _STATE, ignore_errors=True)
         old = self.out.with_name(self.out.name + f".old.{os.getpid()}")
         if self.out.exists():
             os.replace(self.out, old)

@@ -78,5 +78,15 @@ def validate(schema: type[M], config: dict[str, Any]) -> M:
 
 
 def _one_line(err: Exception) -> str:
+    """Hydra's multi-line messages as one line: the problem, then the options, if listed
+    ("Could not find 'category/sofa'; available: cabinet, drawer, ...")."""
     lines = [ln.strip() for ln in str(err).strip().splitlines() if ln.strip()]
-    return " ".join(lines[:2]) if lines else type(err).__name__
+    if "Config search path:" in lines:
+        lines = lines[: lines.index("Config search path:")]
+    if not lines:
+        return type(err).__name__
+    head = lines[0].removeprefix("In 'config': ")
+    listed = [i for i, ln in enumerate(lines) if ln.startswith("Available options")]
+    if listed:
+        return f"{head}; available: {', '.join(lines[listed[0] + 1 :])}"
+    return " ".join([head, *lines[1:]])
