@@ -24,8 +24,17 @@ MANIFEST = "manifest.json"
 LOG = "artic.log"
 FORMAT_VERSION = 1
 _TRACKED_PACKAGES = (
-    "numpy", "scipy", "open3d", "pybullet", "trimesh", "yourdfpy",
-    "hydra-core", "omegaconf", "pydantic", "pillow", "torch",
+    "numpy",
+    "scipy",
+    "open3d",
+    "pybullet",
+    "trimesh",
+    "yourdfpy",
+    "hydra-core",
+    "omegaconf",
+    "pydantic",
+    "pillow",
+    "torch",
 )
 
 

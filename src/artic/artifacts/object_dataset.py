@@ -37,7 +37,7 @@ def object_dir(object_id: int) -> str:
 
 
 def split_of(object_id: int, train_per_test: int) -> str:
-    """"test" for every (train_per_test + 1)-th object, else "train" (split by object;
+    """ "test" for every (train_per_test + 1)-th object, else "train" (split by object;
     10:1 as in the thesis: 10,000 training and 1,000 withheld objects). 0 = no test set."""
     if train_per_test > 0 and object_id % (train_per_test + 1) == train_per_test:
         return "test"

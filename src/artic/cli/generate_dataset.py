@@ -59,7 +59,9 @@ def chunk_ids(cfg: GenerateDatasetConfig, chunk: int) -> range:
     return range(chunk * size, min((chunk + 1) * size, cfg.dataset.objects))
 
 
-def generate_chunk(cfg: GenerateDatasetConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
+def generate_chunk(
+    cfg: GenerateDatasetConfig, inputs: dict[str, Path], chunk: int, tmp: Path
+) -> int:
     """Sample, build and write the objects of one chunk into `tmp`."""
     from artic.objects.categories import build
     from artic.objects.urdf import write_urdf

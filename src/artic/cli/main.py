@@ -73,8 +73,8 @@ def handle_errors(fn: F) -> F:
 
 
 def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, force: bool) -> None:
-    from artic.cli.summary import print_result
     from artic.cli.stage_runner import resolved_config, run_stage
+    from artic.cli.summary import print_result
 
     stage = load_stage(command)
     if cfg:

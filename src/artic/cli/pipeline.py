@@ -108,7 +108,5 @@ def run_pipeline(name: str, force: bool = False, dry_run: bool = False) -> None:
         result = run_stage(stage, spec.overrides, force=force)
         if result.status == "partial":
             raise InputError(f"{path}: stage {stage_name} did not finish: {result.message}")
-        table.add_row(
-            stage_name, spec.cmd, result.status, f"{time.perf_counter() - t0:.1f}", out
-        )
+        table.add_row(stage_name, spec.cmd, result.status, f"{time.perf_counter() - t0:.1f}", out)
     console.print(table)

@@ -60,7 +60,13 @@ def progress(description: str, total: int, unit: str) -> Iterator[Callable[[int]
             eta = (total - state["done"]) / rate if rate > 0 else float("inf")
             log.info(
                 "%s: %d/%d %s (%.0f %s/s, ETA %.0f s)",
-                description, state["done"], total, unit, rate, unit, eta,
+                description,
+                state["done"],
+                total,
+                unit,
+                rate,
+                unit,
+                eta,
             )
 
     yield advance_plain

@@ -88,8 +88,7 @@ def encode_depth(depth: NDArray[np.float32], encoding: str) -> NDArray[np.generi
 def render_chunk(cfg: RenderDepthConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
     """Render the objects of shard `chunk` and write `shards/shard-<chunk>.npz` into tmp."""
     from artic.objects.categories import build
-    from artic.objects.labels import label_columns
-    from artic.objects.labels import image_labels
+    from artic.objects.labels import image_labels, label_columns
     from artic.render.backend import make_backend
     from artic.render.noise import apply_sensor_noise
 
@@ -155,9 +154,7 @@ def _finalize(
             if len(preview) < cfg.render.preview_images:
                 preview.append(decode_depth(data["depth"][row]))
                 preview_labels.append(data["labels"][row])
-    write_csv(
-        work / LABELS, ["shard", "row", "object_id", "split", "image_index", *columns], rows
-    )
+    write_csv(work / LABELS, ["shard", "row", "object_id", "split", "image_index", *columns], rows)
     category = ds.spec(ds.rows[0].object_id)
     info = {
         "category": ds.category,
@@ -174,7 +171,9 @@ def _finalize(
     }
     write_json(work / INFO, info)
     if preview:
-        _write_preview(work / PREVIEW, preview, preview_labels, columns, dof, cfg, category.joint_type)
+        _write_preview(
+            work / PREVIEW, preview, preview_labels, columns, dof, cfg, category.joint_type
+        )
     n_test = sum(r[3] == "test" for r in rows)
     return {
         "category": ds.category,

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
+from artic.artifacts.formats import write_json
 from artic.artifacts.hashing import sha256_json
 from artic.artifacts.manifest import (
     LOG,
@@ -31,7 +32,6 @@ from artic.artifacts.manifest import (
     read_manifest,
     verify_outputs,
 )
-from artic.artifacts.formats import write_json
 from artic.artifacts.workdir import WorkDir, chunks_of_shard
 from artic.cli.progress import progress
 from artic.config.compose import compose, validate
@@ -241,9 +241,7 @@ def _execute(
                 while queue or pending:
                     while queue and len(pending) < 2 * workers:
                         c = queue.pop(0)
-                        pending.add(
-                            pool.submit(_run_chunk, stage.chunk, cfg, inputs, c, work.out)
-                        )
+                        pending.add(pool.submit(_run_chunk, stage.chunk, cfg, inputs, c, work.out))
                     finished, pending = wait(pending, return_when=FIRST_COMPLETED)
                     for fut in finished:
                         advance(fut.result())

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 from rich.console import Console
 from rich.table import Table
 
@@ -9,9 +11,14 @@ from artic.cli.stage_runner import Result
 
 
 def print_result(command: str, result: Result) -> None:
+    """The run's statistics as a table; nothing under --quiet."""
+    if not logging.getLogger().isEnabledFor(logging.INFO):
+        return
     console = Console()
     if result.status == "skipped":
-        console.print(f"[green]{command}[/]: {result.out} is up to date (skipped; --force redoes it)")
+        console.print(
+            f"[green]{command}[/]: {result.out} is up to date (skipped; --force redoes it)"
+        )
         return
     if result.status == "partial":
         console.print(f"[yellow]{command}[/]: {result.message}")

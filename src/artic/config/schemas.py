@@ -30,9 +30,7 @@ class ShardConfig(Strict):
 class RuntimeConfig(Strict):
     """How to run, not what to compute: never changes the output bytes."""
 
-    workers: int = Field(
-        0, ge=0, description="worker processes; 0 = the CPUs this process may use"
-    )
+    workers: int = Field(0, ge=0, description="worker processes; 0 = the CPUs this process may use")
 
 
 class StageConfig(Strict):
@@ -41,5 +39,5 @@ class StageConfig(Strict):
     out: str = Field(description="output folder")
     artifacts_root: str = Field("artifacts", description="default root of output folders")
     seed: int = Field(0, ge=0, description="base seed; sample i is seeded from (seed, i)")
-    shard: ShardConfig = ShardConfig()
-    runtime: RuntimeConfig = RuntimeConfig()
+    shard: ShardConfig = Field(default_factory=ShardConfig)
+    runtime: RuntimeConfig = Field(default_factory=RuntimeConfig)

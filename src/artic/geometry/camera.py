@@ -32,8 +32,7 @@ class CameraIntrinsics(BaseModel):
     def _principal_point_inside(self) -> CameraIntrinsics:
         if not (0 <= self.cx <= self.width - 1 and 0 <= self.cy <= self.height - 1):
             raise ValueError(
-                f"principal point ({self.cx}, {self.cy}) outside a "
-                f"{self.width}x{self.height} image"
+                f"principal point ({self.cx}, {self.cy}) outside a {self.width}x{self.height} image"
             )
         return self
 
@@ -73,6 +72,4 @@ class CameraIntrinsics(BaseModel):
             )
         vv, uu = np.nonzero(depth > 0)
         z = depth[vv, uu].astype(np.float64)
-        return np.stack(
-            [z, -(uu - self.cx) * z / self.fx, -(vv - self.cy) * z / self.fy], axis=1
-        )
+        return np.stack([z, -(uu - self.cx) * z / self.fx, -(vv - self.cy) * z / self.fy], axis=1)

@@ -6,6 +6,8 @@ with +z up, so "world" and "camera body frame" coincide unless a camera pose is 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -20,10 +22,16 @@ def rot_z(angle: float) -> Array:
 
 def axis_angle(axis: Array, angle: float) -> Array:
     """Rotation by `angle` radians about the unit vector `axis` (Rodrigues): (3, 3)."""
-    k = np.asarray(axis, dtype=np.float64)
-    k = k / np.linalg.norm(k)
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * (kx @ kx)
+    x, y, z = (np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)).tolist()
+    c, s = math.cos(angle), math.sin(angle)
+    v = 1.0 - c
+    return np.array(
+        [
+            [c + x * x * v, x * y * v - z * s, x * z * v + y * s],
+            [y * x * v + z * s, c + y * y * v, y * z * v - x * s],
+            [z * x * v - y * s, z * y * v + x * s, c + z * z * v],
+        ]
+    )
 
 
 def make_transform(rotation: Array | None = None, translation: Array | None = None) -> Array:

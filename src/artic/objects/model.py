@@ -79,6 +79,11 @@ class Joint:
             return make_transform(translation=self.axis * q)
         return np.eye(4)
 
+    def child_pose(self, parent_pose: NDArray[np.float64], q: float) -> NDArray[np.float64]:
+        """World pose of the child link given its parent's world pose and q."""
+        frame = parent_pose @ self.origin
+        return frame if self.type == "fixed" else frame @ self.motion(q)
+
 
 @dataclass(frozen=True)
 class ArticulatedObject:
@@ -114,11 +119,11 @@ class ArticulatedObject:
         q = np.asarray(configuration, dtype=np.float64).reshape(-1)
         if q.shape[0] != self.dof:
             raise ValueError(f"configuration has {q.shape[0]} values, object has {self.dof} DoF")
-        values = dict(zip((j.name for j in self.movable_joints), q, strict=True))
+        values = iter(q.tolist())
         poses: dict[str, NDArray[np.float64]] = {self.links[0].name: self.base_pose}
-        for joint in self.joints:  # parents precede children
-            motion = joint.motion(values.get(joint.name, 0.0))
-            poses[joint.child] = poses[joint.parent] @ joint.origin @ motion
+        for joint in self.joints:  # parents precede children; movable ones in dof order
+            value = 0.0 if joint.type == "fixed" else next(values)
+            poses[joint.child] = joint.child_pose(poses[joint.parent], value)
         return [poses[link.name] for link in self.links]
 
     def joint_frames(self, configuration: NDArray[np.float64]) -> list[NDArray[np.float64]]:

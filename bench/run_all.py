@@ -1,0 +1,184 @@
+"""`make bench`: the foundation's benchmarks, measured in one run.
+
+1. Depth backends on the same scenes: raycast (Open3D) vs pybullet (TinyRenderer)
+   images/s at 128x128 and 640x480, interleaved repeats, medians; and how closely they
+   agree (fraction of pixels both hit that are within 1 mm).
+2. End to end: `artic generate-dataset` + `artic render-depth` (default config: noise on,
+   16 images per object, all CPUs) at two dataset sizes: labelled images/s and the peak
+   resident memory of any one process (bounded: it must not grow with the dataset).
+
+Prints a Markdown report and writes bench/results/latest.json.
+Usage: python bench/run_all.py [--objects 550 2200] [--scenes 24] [--repeats 3]
+       [--only backends|e2e]
+(--scenes: objects over the three categories, each rendered at 16 configurations)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from artic.render.backend import RenderedImage
+
+ROOT = Path(__file__).resolve().parents[1]
+ARTIC = [sys.executable, "-m", "artic", "-q"]
+CONFIGURATIONS = 16  # images per object, as render-depth
+
+
+def backend_benchmark(scenes: int, repeats: int, tmp: Path) -> list[dict[str, object]]:
+    """Both backends on the same work as `render-depth`: each object at 16 configurations."""
+    from artic.artifacts.object_dataset import ObjectDataset
+    from artic.cli.render_depth import latin_hypercube
+    from artic.geometry.camera import CameraIntrinsics
+    from artic.objects.categories import build
+    from artic.render.backend import make_backend
+
+    items = []
+    for category in ("microwave", "cabinet2", "drawer"):
+        out = tmp / f"objects-{category}"
+        subprocess.run(
+            [
+                *ARTIC,
+                "generate-dataset",
+                f"category={category}",
+                f"dataset.objects={scenes // 3}",
+                f"out={out}",
+            ],
+            check=True,
+        )
+        ds = ObjectDataset.open(out)
+        for row in ds.rows:
+            spec = ds.spec(row.object_id)
+            obj, urdf = build(spec), ds.urdf(row.object_id)
+            rng = np.random.default_rng(row.object_id)
+            for q in latin_hypercube(rng, CONFIGURATIONS, list(spec.joint_limits)):
+                items.append((obj, q, urdf))
+    cameras = {
+        "128x128": CameraIntrinsics(fx=140, fy=140, cx=63.5, cy=63.5, width=128, height=128),
+        "640x480": CameraIntrinsics(fx=525, fy=525, cx=319.5, cy=239.5, width=640, height=480),
+    }
+    results = []
+    for res, cam in cameras.items():
+        rates: dict[str, list[float]] = {"raycast": [], "pybullet": []}
+        images: dict[str, list[RenderedImage]] = {}
+        for _ in range(repeats):
+            for name in ("raycast", "pybullet"):  # interleaved; fresh backend: no warm caches
+                with make_backend(name, cam, threads=1) as backend:
+                    t0 = time.perf_counter()
+                    images[name] = [backend.render(o, q, u) for o, q, u in items]
+                    rates[name].append(len(items) / (time.perf_counter() - t0))
+        pairs = list(zip(images["raycast"], images["pybullet"], strict=True))
+        both = [(a.depth > 0) & (b.depth > 0) for a, b in pairs]
+        hits = sum(int(m.sum()) for m in both)
+        close = sum(
+            int((np.abs(a.depth - b.depth)[m] <= 0.001).sum())
+            for (a, b), m in zip(pairs, both, strict=True)
+        )
+        same_part = sum(
+            int((a.part_mask == b.part_mask)[m].sum())
+            for (a, b), m in zip(pairs, both, strict=True)
+        )
+        one_only = sum(int(((a.depth > 0) != (b.depth > 0)).sum()) for a, b in pairs)
+        ray_med, pb_med = statistics.median(rates["raycast"]), statistics.median(rates["pybullet"])
+        results.append(
+            {
+                "resolution": res,
+                "images": len(items),
+                "repeats": repeats,
+                "raycast_images_per_s": round(ray_med, 1),
+                "pybullet_images_per_s": round(pb_med, 1),
+                "speedup": round(ray_med / pb_med, 2),
+                "agree_within_1mm": round(close / max(hits, 1), 5),
+                "same_part_id": round(same_part / max(hits, 1), 5),
+                "hit_by_one_only_per_hit_by_both": round(one_only / max(hits, 1), 5),
+            }
+        )
+    return results
+
+
+def end_to_end(objects: int, tmp: Path) -> dict[str, object]:
+    objs, depth = tmp / f"e2e-objects-{objects}", tmp / f"e2e-depth-{objects}"
+    t0 = time.perf_counter()
+    subprocess.run(
+        [
+            *ARTIC,
+            "generate-dataset",
+            "category=microwave",
+            f"dataset.objects={objects}",
+            f"out={objs}",
+        ],
+        check=True,
+    )
+    t1 = time.perf_counter()
+    subprocess.run([*ARTIC, "render-depth", f"dataset={objs}", f"out={depth}"], check=True)
+    t2 = time.perf_counter()
+    info = json.loads((depth / "dataset.json").read_text())
+    peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    return {
+        "objects": objects,
+        "images": info["images"],
+        "generate_s": round(t1 - t0, 1),
+        "render_s": round(t2 - t1, 1),
+        "images_per_s": round(info["images"] / (t2 - t0), 1),
+        "render_images_per_s": round(info["images"] / (t2 - t1), 1),
+        "peak_rss_mib_any_process_so_far": round(peak_kib / 1024, 1),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--objects", type=int, nargs="+", default=[550, 2200])
+    parser.add_argument("--scenes", type=int, default=24)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--only", choices=["backends", "e2e"], default=None)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="artic-bench-") as tmp_dir:
+        tmp = Path(tmp_dir)
+        backends = [] if args.only == "e2e" else backend_benchmark(args.scenes, args.repeats, tmp)
+        e2e = [] if args.only == "backends" else [end_to_end(n, tmp) for n in sorted(args.objects)]
+    report = {
+        "machine": {
+            "cpus": len(__import__("os").sched_getaffinity(0)),
+            "python": platform.python_version(),
+            "platform": platform.platform(),
+        },
+        "backends": backends,
+        "end_to_end": e2e,
+    }
+    out = ROOT / "bench" / "results"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "latest.json").write_text(json.dumps(report, indent=2) + "\n")
+    print(
+        "| resolution | images | raycast img/s | pybullet img/s | speed-up | depth within 1 mm "
+        "| same part id | hit by one backend only |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for r in backends:
+        print(
+            f"| {r['resolution']} | {r['images']} | {r['raycast_images_per_s']} "
+            f"| {r['pybullet_images_per_s']} | {r['speedup']}x "
+            f"| {100 * float(r['agree_within_1mm']):.3f}% | {100 * float(r['same_part_id']):.3f}% "
+            f"| {100 * float(r['hit_by_one_only_per_hit_by_both']):.3f}% |"
+        )
+    print()
+    print("| objects | images | generate s | render s | labelled img/s | peak RSS MiB |")
+    print("|---|---|---|---|---|---|")
+    for r in e2e:
+        print(
+            f"| {r['objects']} | {r['images']} | {r['generate_s']} | {r['render_s']} "
+            f"| {r['images_per_s']} | {r['peak_rss_mib_any_process_so_far']} |"
+        )
+
+
+if __name__ == "__main__":
+    main()

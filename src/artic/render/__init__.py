@@ -1,0 +1,1 @@
+"""Depth rendering backends, the Kinect-like sensor model and dataset previews."""

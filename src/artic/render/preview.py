@@ -1,0 +1,70 @@
+"""Contact sheets: depth images side by side, with the true joint axes drawn on them."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from PIL import Image, ImageDraw
+
+from artic.geometry.camera import CameraIntrinsics
+
+Axis = tuple[NDArray[np.float64], NDArray[np.float64]]  # (origin (3,), unit direction (3,))
+_COLOURS = {"revolute": (255, 60, 60), "prismatic": (60, 220, 60)}
+_AXIS_LENGTH = 0.3  # metres of axis drawn from its origin
+
+
+def colourise(depth: NDArray[np.floating]) -> NDArray[np.uint8]:
+    """(H, W) depth -> (H, W, 3) grey: near bright, far dark, no return black."""
+    valid = depth > 0
+    out = np.zeros((*depth.shape, 3), dtype=np.uint8)
+    if valid.any():
+        lo, hi = float(depth[valid].min()), float(depth[valid].max())
+        scale = (hi - depth) / max(hi - lo, 1e-6)
+        grey = (60 + 195 * np.clip(scale, 0, 1)).astype(np.uint8)
+        out[valid] = grey[valid][:, None]
+    return out
+
+
+def draw_axes(
+    image: NDArray[np.uint8],
+    axes: Sequence[Axis],
+    joint_types: Sequence[str],
+    camera: CameraIntrinsics,
+) -> NDArray[np.uint8]:
+    """Draw each axis as a segment from its origin along its direction, with a dot at
+    the origin: red revolute, green prismatic."""
+    pil = Image.fromarray(image)
+    draw = ImageDraw.Draw(pil)
+    r = max(1, camera.width // 100)
+    for (origin, direction), kind in zip(axes, joint_types, strict=True):
+        ends = np.stack([origin, origin + _AXIS_LENGTH * direction])
+        if (ends[:, 0] <= 1e-3).any():
+            continue  # behind the camera
+        (u0, v0), (u1, v1) = camera.project(ends)
+        colour = _COLOURS.get(kind, (255, 255, 0))
+        draw.line([(u0, v0), (u1, v1)], fill=colour, width=max(1, camera.width // 128))
+        draw.ellipse([u0 - r, v0 - r, u0 + r, v0 + r], fill=colour)
+    return np.asarray(pil)
+
+
+def contact_sheet(
+    depths: Sequence[NDArray[np.floating]],
+    axes: Sequence[Sequence[Axis]],
+    joint_types: Sequence[Sequence[str]],
+    camera: CameraIntrinsics,
+    columns: int = 4,
+) -> NDArray[np.uint8]:
+    """Tile depth images (with their axes) into a grid: (rows * H, columns * W, 3) uint8."""
+    if not depths:
+        raise ValueError("contact_sheet needs at least one image")
+    h, w = camera.height, camera.width
+    columns = max(1, min(columns, len(depths)))
+    rows = -(-len(depths) // columns)
+    sheet = np.zeros((rows * h, columns * w, 3), dtype=np.uint8)
+    for i, (depth, ax, kinds) in enumerate(zip(depths, axes, joint_types, strict=True)):
+        tile = draw_axes(colourise(depth), ax, kinds, camera)
+        r, c = divmod(i, columns)
+        sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = tile
+    return sheet

@@ -1,0 +1,28 @@
+import pytest
+
+from artic.config.compose import compose, validate
+from artic.config.schemas import ShardConfig
+from artic.errors import InputError
+
+
+def test_overrides_and_interpolated_output_paths():
+    cfg = compose("render_depth", ["dataset=artifacts/objects/toaster/", "seed=3"])
+    assert cfg["out"] == "artifacts/depth/toaster"
+    assert cfg["seed"] == 3 and cfg["camera"]["width"] == 128
+
+
+def test_debug_and_experiment_presets_override_defaults():
+    tiny = compose("generate_dataset", ["debug=tiny"])
+    full = compose("generate_dataset", ["experiment=appendix_a"])
+    assert tiny["dataset"]["objects"] < 10
+    assert full["dataset"]["objects"] == 11000
+
+
+def test_hydra_errors_become_one_line_input_errors():
+    with pytest.raises(InputError, match="camera"):
+        compose("render_depth", ["camera=nosuchcam", "dataset=x"])
+
+
+def test_validation_error_names_the_field():
+    with pytest.raises(InputError, match=r"config field count: .*greater than or equal to 1"):
+        validate(ShardConfig, {"index": 0, "count": 0})

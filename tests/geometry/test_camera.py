@@ -1,0 +1,47 @@
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from artic.geometry.camera import CameraIntrinsics
+from artic.geometry.transforms import axis_angle, invert, make_transform, rot_z, transform_points
+
+CAM = CameraIntrinsics(fx=140, fy=140, cx=63.5, cy=63.5, width=128, height=128)
+
+
+def test_projection_convention_camera_looks_down_x_with_z_up():
+    centre = CAM.project(np.array([[2.0, 0.0, 0.0]]))[0]
+    np.testing.assert_allclose(centre, [63.5, 63.5])
+    left, up = CAM.project(np.array([[2.0, 0.5, 0.0], [2.0, 0.0, 0.5]]))
+    assert left[0] < 63.5, "+y is to the left in the image"
+    assert up[1] < 63.5, "+z is up in the image (row 0 at the top)"
+
+
+def test_back_project_inverts_project():
+    depth = np.zeros((128, 128), dtype=np.float32)
+    depth[10, 100] = 1.5
+    depth[64, 3] = 2.5
+    points = CAM.back_project(depth)
+    uv = CAM.project(points)
+    np.testing.assert_allclose(sorted(map(tuple, uv)), [(3.0, 64.0), (100.0, 10.0)], atol=1e-9)
+    np.testing.assert_allclose(sorted(points[:, 0]), [1.5, 2.5], atol=1e-6)
+
+
+def test_rays_have_unit_forward_component():
+    rays = CAM.ray_directions()
+    assert rays.shape == (128, 128, 3)
+    np.testing.assert_array_equal(rays[..., 0], 1.0)
+
+
+def test_bad_intrinsics_are_refused():
+    with pytest.raises(ValidationError, match="principal point"):
+        CameraIntrinsics(fx=1, fy=1, cx=500, cy=1, width=10, height=10)
+    with pytest.raises(ValidationError, match="fx"):
+        CameraIntrinsics(fx=-1, fy=1, cx=1, cy=1, width=10, height=10)
+
+
+def test_transforms_compose_and_invert():
+    t = make_transform(rot_z(0.3) @ axis_angle(np.array([1.0, 1.0, 0.0]), 0.2), [1, 2, 3])
+    np.testing.assert_allclose(t @ invert(t), np.eye(4), atol=1e-12)
+    p = np.random.default_rng(0).normal(size=(5, 3))
+    np.testing.assert_allclose(transform_points(invert(t), transform_points(t, p)), p, atol=1e-12)
+    np.testing.assert_allclose(axis_angle(np.array([0.0, 0.0, 1.0]), 0.7), rot_z(0.7), atol=1e-12)
