@@ -25,6 +25,8 @@ from artic.config.schemas import StageConfig, Strict
 from artic.geometry.camera import CameraIntrinsics
 from artic.render.noise import SensorNoiseConfig
 
+PREVIEW_TILE_PX = 256  # small images are enlarged (whole multiples) to about this width
+
 
 class RenderConfig(Strict):
     """What to render and how to store it."""
@@ -107,8 +109,9 @@ def render_chunk(cfg: RenderDepthConfig, inputs: dict[str, Path], chunk: int, tm
             rng = np.random.default_rng([cfg.seed, object_id])
             limits = [tuple(lim) for lim in spec.joint_limits]
             qs = latin_hypercube(rng, cfg.render.configurations, limits)  # type: ignore[arg-type]
-            for k, q in enumerate(qs):
-                image = backend.render(obj, q, urdf)
+            for k, (q, image) in enumerate(
+                zip(qs, backend.render_many(obj, qs, urdf), strict=True)
+            ):
                 noisy = apply_sensor_noise(image.depth, cfg.noise, rng)
                 labels = image_labels(spec, obj, q)
                 arrays["depth"].append(encode_depth(noisy, cfg.render.depth_encoding))
@@ -208,9 +211,9 @@ def _write_preview(
         ]
         for lab in labels
     ]
-    sheet = contact_sheet(
-        depths, axes, [[joint_type] * dof for _ in depths], cfg.camera, cfg.render.preview_columns
-    )
+    kinds = [[joint_type] * dof for _ in depths]
+    scale = max(1, PREVIEW_TILE_PX // cfg.camera.width)
+    sheet = contact_sheet(depths, axes, kinds, cfg.camera, cfg.render.preview_columns, scale)
     Image.fromarray(sheet).save(path, format="PNG")
 
 

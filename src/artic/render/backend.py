@@ -38,6 +38,16 @@ class DepthBackend(Protocol):
         urdf_path: Path | None = None,
     ) -> RenderedImage: ...
 
+    def render_many(
+        self,
+        obj: ArticulatedObject,
+        configurations: NDArray[np.float64],
+        urdf_path: Path | None = None,
+    ) -> list[RenderedImage]:
+        """One image per row of `configurations` (n, dof): the object across its
+        articulation (what render-depth asks for; backends may batch the work)."""
+        ...
+
     def close(self) -> None: ...
 
     def __enter__(self) -> DepthBackend: ...
@@ -76,7 +86,23 @@ def make_backend(name: str, camera: CameraIntrinsics, *, threads: int = 1) -> De
 
 
 class BackendBase:
-    """Context-manager plumbing shared by the backends."""
+    """Context-manager plumbing shared by the backends, and `render_many` as a loop."""
+
+    def render(
+        self,
+        obj: ArticulatedObject,
+        configuration: NDArray[np.float64],
+        urdf_path: Path | None = None,
+    ) -> RenderedImage:
+        raise NotImplementedError
+
+    def render_many(
+        self,
+        obj: ArticulatedObject,
+        configurations: NDArray[np.float64],
+        urdf_path: Path | None = None,
+    ) -> list[RenderedImage]:
+        return [self.render(obj, q, urdf_path) for q in np.asarray(configurations)]
 
     def close(self) -> None:
         return None

@@ -55,16 +55,33 @@ def contact_sheet(
     joint_types: Sequence[Sequence[str]],
     camera: CameraIntrinsics,
     columns: int = 4,
+    scale: int = 1,
 ) -> NDArray[np.uint8]:
-    """Tile depth images (with their axes) into a grid: (rows * H, columns * W, 3) uint8."""
+    """Tile depth images (with their axes) into a grid of tiles enlarged `scale` times
+    (nearest pixel): (rows * scale * H, columns * scale * W, 3) uint8."""
     if not depths:
         raise ValueError("contact_sheet needs at least one image")
-    h, w = camera.height, camera.width
+    big = scaled(camera, scale)
+    h, w = big.height, big.width
     columns = max(1, min(columns, len(depths)))
     rows = -(-len(depths) // columns)
     sheet = np.zeros((rows * h, columns * w, 3), dtype=np.uint8)
     for i, (depth, ax, kinds) in enumerate(zip(depths, axes, joint_types, strict=True)):
-        tile = draw_axes(colourise(depth), ax, kinds, camera)
+        grey = colourise(depth).repeat(scale, axis=0).repeat(scale, axis=1)
+        tile = draw_axes(grey, ax, kinds, big)
         r, c = divmod(i, columns)
         sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = tile
     return sheet
+
+
+def scaled(camera: CameraIntrinsics, scale: int) -> CameraIntrinsics:
+    """The camera whose pixels are `scale` x `scale` blocks of `camera`'s."""
+    offset = (scale - 1) / 2  # pixel centre of a block, in enlarged pixels
+    return CameraIntrinsics(
+        fx=camera.fx * scale,
+        fy=camera.fy * scale,
+        cx=camera.cx * scale + offset,
+        cy=camera.cy * scale + offset,
+        width=camera.width * scale,
+        height=camera.height * scale,
+    )

@@ -9,7 +9,9 @@ keeps ray parameters, and the rays have unit forward (x) component, so the hit
 distance is the depth along the optical axis. Within a group, the geometry id of a hit
 names the link, i.e. the part id. Only the rays inside the image rectangle bounding a
 group's projected vertices are cast against it (a ray outside cannot hit); when a
-vertex is at or behind the camera plane, every ray is.
+vertex is at or behind the camera plane, every ray is. `render_many` casts the rays of
+all of an object's configurations against a group in one call, and a group that keeps
+its pose (the body) is cast once.
 """
 
 from __future__ import annotations
@@ -27,7 +29,10 @@ from artic.geometry.transforms import invert, transform_points
 from artic.objects.model import ArticulatedObject
 from artic.render.backend import BackendBase, RenderedImage, register_backend
 
-_Cast = tuple[NDArray[np.float64], slice, slice, NDArray[np.float32], NDArray[np.uint8]]
+RAYS_PER_CALL = 1 << 14  # rays batched into one cast_rays call (larger ones lose cache)
+
+#: one image's hits on a group: window rows, cols, distance (inf: none), part id + 1 (0: none)
+_Hits = tuple[slice, slice, NDArray[np.float32], NDArray[np.uint8]]
 
 
 @dataclass
@@ -38,11 +43,8 @@ class _Group:
     part_ids: NDArray[np.uint8]  # geometry id -> part id + 1 (the mask value); last: 0
     vertices: NDArray[np.float64]  # all vertices, root frame (for the window)
     scene: o3d.t.geometry.RaycastingScene
-    #: the last cast: pose, window, hit distances and geometry ids (reused while the
-    #: group has not moved, e.g. the body across an object's configurations)
-    last: (
-        tuple[NDArray[np.float64], slice, slice, NDArray[np.float32], NDArray[np.uint8]] | None
-    ) = None
+    #: the last single-pose cast and its pose, reused while the group does not move
+    last: tuple[NDArray[np.float64], _Hits] | None = None
 
 
 def rigid_groups(obj: ArticulatedObject) -> list[list[int]]:
@@ -101,49 +103,89 @@ class RaycastBackend(BackendBase):
         configuration: NDArray[np.float64],
         urdf_path: Path | None = None,
     ) -> RenderedImage:
-        poses = obj.link_poses(configuration)
-        shape = (self.camera.height, self.camera.width)
-        depth = np.full(shape, np.inf, dtype=np.float32)
-        mask = np.zeros(shape, dtype=np.uint8)
-        for group in self._scenes(obj):
-            pose = poses[group.root]
-            if group.last is not None and np.array_equal(group.last[0], pose):
-                _, rows, cols, t, parts = group.last
-            else:
-                rows, cols, t, parts = self._cast(group, pose)
-                group.last = (pose, rows, cols, t, parts)
-            if t.size == 0:
-                continue
-            nearer = t < depth[rows, cols]
-            np.copyto(depth[rows, cols], t, where=nearer)
-            np.copyto(mask[rows, cols], parts, where=nearer)
-        depth[~np.isfinite(depth)] = 0.0
-        return RenderedImage(depth, mask)
+        q = np.asarray(configuration, dtype=np.float64).reshape(1, -1)
+        return self.render_many(obj, q, urdf_path)[0]
 
-    def _cast(
-        self, group: _Group, pose: NDArray[np.float64]
-    ) -> tuple[slice, slice, NDArray[np.float32], NDArray[np.uint8]]:
-        """Cast the rays of the group's window at `pose`: rows, cols, hit distance (inf:
-        no hit) and part id + 1 (0: no hit) over the window."""
-        rows, cols = self._window(transform_points(pose, group.vertices))
-        if rows.start >= rows.stop or cols.start >= cols.stop:
-            return rows, cols, np.zeros(0, np.float32), np.zeros(0, np.uint8)
-        window = self._directions[rows, cols]
-        # camera rays in the group frame: origin R^T (0 - t), direction R^T d
-        rays = np.empty((window.shape[0] * window.shape[1], 6), dtype=np.float32)
-        rays[:, :3] = -(pose[:3, 3] @ pose[:3, :3])
-        np.matmul(window.reshape(-1, 3), pose[:3, :3].astype(np.float32), out=rays[:, 3:])
-        hits = group.scene.cast_rays(o3d.core.Tensor.from_numpy(rays), nthreads=self.threads)
-        t = hits["t_hit"].numpy().reshape(window.shape[:2])
-        ids = hits["geometry_ids"].numpy().reshape(window.shape[:2])
-        # misses carry Open3D's invalid id (2^32 - 1): clipped onto the trailing 0
-        parts = np.take(group.part_ids, ids, mode="clip")
-        return rows, cols, t, parts
+    def render_many(
+        self,
+        obj: ArticulatedObject,
+        configurations: NDArray[np.float64],
+        urdf_path: Path | None = None,
+    ) -> list[RenderedImage]:
+        qs = np.asarray(configurations, dtype=np.float64).reshape(len(configurations), -1)
+        n, shape = len(qs), (self.camera.height, self.camera.width)
+        depth = np.full((n, *shape), np.inf, dtype=np.float32)
+        mask = np.zeros((n, *shape), dtype=np.uint8)
+        poses = [obj.link_poses(q) for q in qs]
+        for group in self._scenes(obj):
+            group_poses = [p[group.root] for p in poses]
+            for k, (rows, cols, t, parts) in enumerate(self._cast(group, group_poses)):
+                if t.size == 0:
+                    continue
+                nearer = t < depth[k, rows, cols]
+                np.copyto(depth[k, rows, cols], t, where=nearer)
+                np.copyto(mask[k, rows, cols], parts, where=nearer)
+        depth[depth == np.inf] = 0.0
+        return [RenderedImage(d, m) for d, m in zip(depth, mask, strict=True)]
+
+    def _cast(self, group: _Group, poses: list[NDArray[np.float64]]) -> list[_Hits]:
+        """The group's hits at each pose: one cast_rays call for all poses. A group that
+        keeps one pose (the body) is cast once, or not at all if it has not moved since
+        the previous call."""
+        if all(np.array_equal(p, poses[0]) for p in poses[1:]):
+            if group.last is None or not np.array_equal(group.last[0], poses[0]):
+                group.last = (poses[0], self._cast_poses(group, poses[:1])[0])
+            return [group.last[1]] * len(poses)
+        return self._cast_poses(group, poses)
+
+    def _cast_poses(self, group: _Group, poses: list[NDArray[np.float64]]) -> list[_Hits]:
+        windows = [self._window(transform_points(p, group.vertices)) for p in poses]
+        out: list[_Hits] = []
+        batch: list[tuple[slice, slice, NDArray[np.float64]]] = []
+        size = 0
+        for (rows, cols), pose in zip(windows, poses, strict=True):
+            batch.append((rows, cols, pose))
+            size += (rows.stop - rows.start) * (cols.stop - cols.start)
+            if size >= RAYS_PER_CALL:
+                out += self._cast_batch(group, batch)
+                batch, size = [], 0
+        return out + self._cast_batch(group, batch) if batch else out
+
+    def _cast_batch(
+        self, group: _Group, batch: list[tuple[slice, slice, NDArray[np.float64]]]
+    ) -> list[_Hits]:
+        """Hits for each (window, pose) of `batch`, from one cast_rays call."""
+        chunks, shapes = [], []
+        for rows, cols, pose in batch:
+            window = self._directions[rows, cols]
+            shapes.append(window.shape[:2])
+            # camera rays in the group frame: origin R^T (0 - t), direction R^T d
+            rays = np.empty((shapes[-1][0] * shapes[-1][1], 6), dtype=np.float32)
+            rays[:, :3] = -(pose[:3, 3] @ pose[:3, :3])
+            np.matmul(window.reshape(-1, 3), pose[:3, :3].astype(np.float32), out=rays[:, 3:])
+            chunks.append(rays)
+        if sum(len(c) for c in chunks) == 0:
+            empty = (np.zeros((0, 0), np.float32), np.zeros((0, 0), np.uint8))
+            return [(rows, cols, *empty) for rows, cols, _ in batch]
+        hits = group.scene.cast_rays(
+            o3d.core.Tensor.from_numpy(np.concatenate(chunks)), nthreads=self.threads
+        )
+        t_all = hits["t_hit"].numpy()
+        # misses carry Open3D's invalid id (2^32 - 1): clipped onto part_ids' trailing 0
+        parts_all = np.take(group.part_ids, hits["geometry_ids"].numpy(), mode="clip")
+        out: list[_Hits] = []
+        start = 0
+        for (rows, cols, _), shape in zip(batch, shapes, strict=True):
+            stop = start + shape[0] * shape[1]
+            t, parts = t_all[start:stop].reshape(shape), parts_all[start:stop].reshape(shape)
+            out.append((rows, cols, t, parts))
+            start = stop
+        return out
 
     def _window(self, points: NDArray[np.float64]) -> tuple[slice, slice]:
         """Rows and columns of the pixels whose rays may hit the convex hull of `points`."""
         h, w = self.camera.height, self.camera.width
-        if points[:, 0].min() <= 1e-6:
+        if points[:, 0].min() <= 1e-6:  # at or behind the camera plane
             return slice(0, h), slice(0, w)
         uv = self.camera.project(points)
         u0, v0 = uv.min(axis=0).tolist()
