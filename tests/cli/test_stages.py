@@ -187,3 +187,18 @@ def test_cfg_prints_resolved_config(tmp_path):
     assert "name: drawer" in out and "out: artifacts/objects/drawer" in out
     code, out, _ = run_cli("render-depth", "--cfg", "dataset=artifacts/objects/drawer")
     assert code == 0 and "out: artifacts/depth/drawer" in out
+
+
+def test_clean_depth_and_float16_encoding(tmp_path, tiny_objects):
+    out = tmp_path / "d"
+    code, _, err = run_cli(
+        "render-depth", "debug=tiny", f"dataset={tiny_objects}", f"out={out}",
+        "render.store_clean_depth=true", "render.depth_encoding=float16_m",
+    )  # fmt: skip
+    assert code == 0, err
+    shard = np.load(out / "shards/shard-00000.npz")
+    depth, clean, mask = shard["depth"], shard["depth_clean"], shard["part_mask"]
+    assert depth.dtype == clean.dtype == np.float16
+    np.testing.assert_array_equal(clean > 0, mask > 0)  # masks come from the clean render
+    assert not np.array_equal(depth, clean), "the stored depth is the noisy one"
+    assert 0.5 < float(clean[clean > 0].mean()) < 6.0

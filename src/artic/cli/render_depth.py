@@ -115,13 +115,13 @@ def render_chunk(cfg: RenderDepthConfig, inputs: dict[str, Path], chunk: int, tm
                 noisy = apply_sensor_noise(image.depth, cfg.noise, rng)
                 labels = image_labels(spec, obj, q)
                 arrays["depth"].append(encode_depth(noisy, cfg.render.depth_encoding))
-                arrays["depth_clean"].append(encode_depth(image.depth, cfg.render.depth_encoding))
+                if cfg.render.store_clean_depth:
+                    clean = encode_depth(image.depth, cfg.render.depth_encoding)
+                    arrays["depth_clean"].append(clean)
                 arrays["part_mask"].append(image.part_mask)
                 arrays["labels"].append(np.array([labels[c] for c in columns]))
                 ids.append((object_id, k, split[object_id] == "test"))
-    out = {k: np.stack(v) for k, v in arrays.items()}
-    if not cfg.render.store_clean_depth:
-        del out["depth_clean"]
+    out = {k: np.stack(v) for k, v in arrays.items() if v}
     out["object_id"] = np.array([i[0] for i in ids], dtype=np.int32)
     out["image_index"] = np.array([i[1] for i in ids], dtype=np.int16)
     out["test"] = np.array([i[2] for i in ids], dtype=np.bool_)
