@@ -98,6 +98,32 @@ def test_edge_pixels_are_dropped_at_the_configured_rate():
     assert lost[~edges & (depth > 0)].sum() == 0
 
 
+def test_pixel_parameters_scale_with_the_image_resolution():
+    # a surface slanted so that depth grows 2 cm per sensor pixel (4 cm over a 3x3
+    # window): not an edge (5 cm) at the sensor's resolution, nor at a quarter of it
+    # (8 cm per image pixel, 16 cm over the window) once the threshold is scaled
+    cfg = SensorNoiseConfig(
+        lateral_sigma_px=0.0, axial=False, quantize=False, dropout=0.0, edge_dropout=1.0
+    )
+
+    def ramp(step: float) -> np.ndarray:
+        return (1.5 + step * np.arange(40))[None, :].repeat(40, axis=0).astype(np.float32)
+
+    native = apply_sensor_noise(ramp(0.02), cfg, np.random.default_rng(0), cfg.focal_px)
+    assert (native[:, 1:-1] > 0).all()
+    unscaled = apply_sensor_noise(ramp(0.08), cfg, np.random.default_rng(0))
+    scaled = apply_sensor_noise(ramp(0.08), cfg, np.random.default_rng(0), cfg.focal_px / 4)
+    assert (unscaled == 0).all(), "without scaling the whole ramp reads as edges"
+    assert (scaled[:, 1:-1] > 0).all()
+    # and the lateral shift shrinks: at k = 4 a 0.5 px sigma rounds to no shift
+    step = np.zeros((40, 40), np.float32)
+    step[:, 20:] = 2.0
+    cfg = SensorNoiseConfig(axial=False, quantize=False, dropout=0.0, edge_dropout=0.0)
+    shifted = apply_sensor_noise(step, cfg, np.random.default_rng(0))
+    kept = apply_sensor_noise(step, cfg, np.random.default_rng(0), cfg.focal_px / 8)
+    assert not np.array_equal(shifted, step) and np.array_equal(kept, step)
+
+
 def test_out_of_range_depth_is_lost():
     depth = np.array([[0.2, 1.0, 7.0]], dtype=np.float32)
     cfg = SensorNoiseConfig(**ONLY_AXIAL, axial=False)

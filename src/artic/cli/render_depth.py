@@ -112,7 +112,7 @@ def render_chunk(cfg: RenderDepthConfig, inputs: dict[str, Path], chunk: int, tm
             for k, (q, image) in enumerate(
                 zip(qs, backend.render_many(obj, qs, urdf), strict=True)
             ):
-                noisy = apply_sensor_noise(image.depth, cfg.noise, rng)
+                noisy = apply_sensor_noise(image.depth, cfg.noise, rng, cfg.camera.fx)
                 labels = image_labels(spec, obj, q)
                 arrays["depth"].append(encode_depth(noisy, cfg.render.depth_encoding))
                 if cfg.render.store_clean_depth:

@@ -1,6 +1,7 @@
 """A Kinect-v1-like depth sensor model, vectorised (no per-pixel Python loops).
 
-Applied in this order to a clean depth image (metres, 0 = no return):
+Applied in this order to a clean depth image (metres, 0 = no return); pixel-level
+parameters are at the sensor's resolution and scaled to the image's (`image_fx`):
 1. lateral noise: each pixel takes the value of a neighbour offset by N(0, sigma) pixels
    (nearest), which frays depth edges as structured-light sensors do;
 2. axial noise: N(0, sigma_z) with sigma_z = 0.0012 + 0.0019 (z - 0.4)^2 m
@@ -29,7 +30,9 @@ class SensorNoiseConfig(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     enabled: bool = Field(True, description="apply the model at all")
-    lateral_sigma_px: float = Field(0.5, ge=0, description="std of the lateral pixel shift, px")
+    lateral_sigma_px: float = Field(
+        0.5, ge=0, description="std of the lateral pixel shift, sensor px"
+    )
     axial: bool = Field(True, description="range-dependent Gaussian noise along the ray")
     axial_a: float = Field(0.0012, ge=0, description="sigma_z = a + b (z - c)^2: a, metres")
     axial_b: float = Field(0.0019, ge=0, description="sigma_z = a + b (z - c)^2: b, 1/metres")
@@ -39,7 +42,7 @@ class SensorNoiseConfig(BaseModel):
     focal_px: float = Field(580.0, gt=0, description="the sensor's IR focal length, pixels")
     subpixel: int = Field(8, gt=0, description="disparity steps per pixel (Kinect v1: 1/8 px)")
     edge_threshold_m: float = Field(
-        0.05, gt=0, description="depth span in a 3x3 neighbourhood that makes an edge, metres"
+        0.05, gt=0, description="depth span over 3x3 sensor pixels that makes an edge, metres"
     )
     edge_dropout: float = Field(0.5, ge=0, le=1, description="probability an edge pixel is lost")
     dropout: float = Field(0.005, ge=0, le=1, description="probability any pixel is lost")
@@ -74,16 +77,28 @@ def depth_edges(depth: NDArray[np.floating], threshold: float) -> NDArray[np.boo
 
 
 def apply_sensor_noise(
-    depth: NDArray[np.float32], cfg: SensorNoiseConfig, rng: np.random.Generator
+    depth: NDArray[np.float32],
+    cfg: SensorNoiseConfig,
+    rng: np.random.Generator,
+    image_fx: float | None = None,
 ) -> NDArray[np.float32]:
-    """The sensor's view of a clean depth image: (H, W) float32 metres -> same shape."""
+    """The sensor's view of a clean depth image: (H, W) float32 metres -> same shape.
+
+    image_fx: focal length of the rendered image, px (default: the sensor's own). The
+    pixel-level parameters hold at the sensor's resolution, so for an image with k =
+    focal_px / image_fx sensor pixels per image pixel the lateral shift is divided by k
+    and the edge threshold, a depth span over 3x3 pixels, multiplied by k (a slanted
+    surface spans k times more depth per image pixel).
+    """
     if not cfg.enabled:
         return depth.copy()
+    k = cfg.focal_px / image_fx if image_fx else 1.0
     z = depth.astype(np.float64)
     h, w = z.shape
-    if cfg.lateral_sigma_px > 0:
-        rows = np.arange(h)[:, None] + rng.normal(0.0, cfg.lateral_sigma_px, (h, w))
-        cols = np.arange(w)[None, :] + rng.normal(0.0, cfg.lateral_sigma_px, (h, w))
+    sigma = cfg.lateral_sigma_px / k
+    if sigma > 0:
+        rows = np.arange(h)[:, None] + rng.normal(0.0, sigma, (h, w))
+        cols = np.arange(w)[None, :] + rng.normal(0.0, sigma, (h, w))
         z = z[
             np.clip(np.rint(rows), 0, h - 1).astype(int),
             np.clip(np.rint(cols), 0, w - 1).astype(int),
@@ -93,7 +108,7 @@ def apply_sensor_noise(
         z = np.where(valid, z + rng.normal(0.0, 1.0, (h, w)) * axial_sigma(z, cfg), 0.0)
     if cfg.quantize:
         z = quantize_disparity(z, cfg)
-    lost = depth_edges(depth, cfg.edge_threshold_m) & (rng.random((h, w)) < cfg.edge_dropout)
+    lost = depth_edges(depth, cfg.edge_threshold_m * k) & (rng.random((h, w)) < cfg.edge_dropout)
     lost |= rng.random((h, w)) < cfg.dropout
     z = np.where(lost | (z < cfg.min_range_m) | (z > cfg.max_range_m), 0.0, z)
     return z.astype(np.float32)
