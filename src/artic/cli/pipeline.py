@@ -8,6 +8,7 @@ exist already; `outs` must name the folder the stage writes.
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 
@@ -92,6 +93,7 @@ def run_pipeline(name: str, force: bool = False, dry_run: bool = False) -> None:
     path = pipeline_path(name)
     pipeline = load_pipeline(path)
     console = Console()
+    verbose = logging.getLogger().isEnabledFor(logging.INFO)  # not under --quiet
     table = Table(title=f"pipeline {name} ({path})", title_justify="left")
     for col in ("stage", "cmd", "status", "seconds", "output"):
         table.add_column(col)
@@ -103,10 +105,12 @@ def run_pipeline(name: str, force: bool = False, dry_run: bool = False) -> None:
         if dry_run:
             table.add_row(stage_name, spec.cmd, "planned", "", out)
             continue
-        console.print(f"[bold]{stage_name}[/]: artic {spec.cmd} {' '.join(spec.overrides)}")
+        if verbose:
+            console.print(f"[bold]{stage_name}[/]: artic {spec.cmd} {' '.join(spec.overrides)}")
         t0 = time.perf_counter()
         result = run_stage(stage, spec.overrides, force=force)
         if result.status == "partial":
             raise InputError(f"{path}: stage {stage_name} did not finish: {result.message}")
         table.add_row(stage_name, spec.cmd, result.status, f"{time.perf_counter() - t0:.1f}", out)
-    console.print(table)
+    if verbose or dry_run:
+        console.print(table)

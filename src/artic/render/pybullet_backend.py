@@ -11,16 +11,18 @@ client per backend.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import pybullet
 from numpy.typing import NDArray
-from pybullet_utils.bullet_client import BulletClient
 from scipy.spatial.transform import Rotation
 
 from artic.geometry.camera import CameraIntrinsics
 from artic.objects.model import ArticulatedObject
 from artic.render.backend import BackendBase, RenderedImage, register_backend
+from artic.sim.bullet import connect_direct, pybullet_module
+
+pybullet = pybullet_module()
 
 
 def projection_matrix(camera: CameraIntrinsics, near: float, far: float) -> NDArray[np.float64]:
@@ -53,7 +55,7 @@ class PyBulletBackend(BackendBase):
     ) -> None:
         self.camera = camera
         self.near, self.far = near, far
-        self._client: BulletClient | None = BulletClient(connection_mode=pybullet.DIRECT)
+        self._client: Any = connect_direct()
         # PyBullet takes column-major flat lists
         self._view = view_matrix().T.reshape(-1).tolist()
         self._proj = projection_matrix(camera, near, far).T.reshape(-1).tolist()
@@ -81,7 +83,7 @@ class PyBulletBackend(BackendBase):
         self._body, self._path = body, urdf_path
         return body
 
-    def _require_client(self) -> BulletClient:
+    def _require_client(self) -> Any:
         if self._client is None:
             raise RuntimeError("the pybullet backend is closed")
         return self._client

@@ -1,0 +1,1 @@
+"""PyBullet worlds: connections now; robots and task environments later (Chapter 5)."""
