@@ -8,6 +8,7 @@ simulator only when `make_backend` asks for them.
 from __future__ import annotations
 
 import importlib
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
@@ -85,16 +86,17 @@ def make_backend(name: str, camera: CameraIntrinsics, *, threads: int = 1) -> De
     return _REGISTRY[name](camera, threads=threads)
 
 
-class BackendBase:
+class BackendBase(ABC):
     """Context-manager plumbing shared by the backends, and `render_many` as a loop."""
 
+    @abstractmethod
     def render(
         self,
         obj: ArticulatedObject,
         configuration: NDArray[np.float64],
         urdf_path: Path | None = None,
     ) -> RenderedImage:
-        raise NotImplementedError
+        """One image of `obj` at `configuration` (dof,)."""
 
     def render_many(
         self,
