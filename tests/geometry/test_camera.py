@@ -45,3 +45,19 @@ def test_transforms_compose_and_invert():
     p = np.random.default_rng(0).normal(size=(5, 3))
     np.testing.assert_allclose(transform_points(invert(t), transform_points(t, p)), p, atol=1e-12)
     np.testing.assert_allclose(axis_angle(np.array([0.0, 0.0, 1.0]), 0.7), rot_z(0.7), atol=1e-12)
+
+
+def test_reproject_into_the_same_camera_is_identity_and_halves_with_focal():
+    from artic.geometry.camera import reproject
+
+    cam = CameraIntrinsics(fx=100, fy=100, cx=31.5, cy=23.5, width=64, height=48)
+    depth = np.zeros((48, 64), np.float32)
+    depth[10:30, 20:50] = 2.0
+    depth[15:20, 25:30] = 1.5  # a nearer patch in front
+    np.testing.assert_array_equal(reproject(depth, cam, cam), depth)
+    half = CameraIntrinsics(fx=50, fy=50, cx=15.5, cy=11.5, width=32, height=24)
+    small = reproject(depth, cam, half)
+    assert small.shape == (24, 32)
+    assert set(np.unique(small)) == {0.0, 1.5, 2.0}
+    assert small[(15 + 20) // 4, (25 + 30) // 4] == 1.5, "nearest point wins"
+    assert reproject(np.zeros((48, 64), np.float32), cam, half).max() == 0

@@ -38,9 +38,9 @@ def shard_name(chunk: int) -> str:
 
 @dataclass(frozen=True)
 class Shard:
-    """One shard, decoded: depth in float32 metres (0 = no return)."""
+    """One shard: depth in float32 metres (0 = no return), or as stored."""
 
-    depth: NDArray[np.float32]
+    depth: NDArray[Any]
     part_mask: NDArray[np.uint8]
     labels: NDArray[np.float64]
     object_id: NDArray[np.int32]
@@ -78,12 +78,13 @@ class DepthDataset:
     def shard_files(self) -> list[str]:
         return sorted(k for k in self.manifest.outputs if k.startswith("shards/"))
 
-    def shards(self) -> Iterator[Shard]:
-        """Decoded shards in order, each verified against the manifest as it is read."""
+    def shards(self, decode: bool = True) -> Iterator[Shard]:
+        """Shards in order, each verified against the manifest as it is read; depth
+        decoded to float32 metres, or as stored (uint16 mm / float16 m) if not `decode`."""
         for rel in self.shard_files():
             data = read_npz(verify_file(self.root, self.manifest, rel))
             yield Shard(
-                depth=decode_depth(data["depth"]),
+                depth=decode_depth(data["depth"]) if decode else data["depth"],
                 part_mask=data["part_mask"],
                 labels=data["labels"],
                 object_id=data["object_id"],

@@ -68,6 +68,13 @@ class WorkDir:
         tmp.mkdir(parents=True)
         return tmp
 
+    def resume_dir(self, name: str) -> Path:
+        """A folder that survives interruptions (not cleared between runs of the same
+        config, never part of the outputs): for a long chunk's own checkpoints."""
+        path = self.path / _STATE / "resume" / name
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+
     def commit_chunk(self, chunk: int, tmp: Path) -> None:
         """Move the files of a completed chunk into place, then mark it done."""
         for src in sorted(p for p in tmp.rglob("*") if p.is_file()):

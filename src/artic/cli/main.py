@@ -11,6 +11,7 @@ import importlib
 import logging
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar
 
 import typer
@@ -31,6 +32,7 @@ app = typer.Typer(
 STAGE_MODULES: dict[str, str] = {
     "generate-dataset": "artic.cli.generate_dataset",
     "render-depth": "artic.cli.render_depth",
+    "train-mdn": "artic.cli.train_mdn",
 }
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -107,6 +109,53 @@ def render_depth(
     Example: artic render-depth dataset=artifacts/objects/refrigerator
     """
     run_stage_command("render-depth", overrides, cfg, force)
+
+
+@app.command("train-mdn", context_settings=_EXTRA)
+@handle_errors
+def train_mdn(
+    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
+) -> None:
+    """Train the per-category mixture density network (section 3.2, Eq. 3.1 and 3.2).
+
+    Example: artic train-mdn category=microwave
+    """
+    run_stage_command("train-mdn", overrides, cfg, force)
+
+
+@app.command("predict")
+@handle_errors
+def predict(
+    image: Path = typer.Argument(..., help="depth image: .npy (float metres) or 16-bit .png (mm)"),
+    category: str = typer.Option(..., "--category", help="object category (one model each)"),
+    camera: Path = typer.Option(
+        ..., "--camera", help="intrinsics JSON: fx, fy, cx, cy, width, height"
+    ),
+    mask: Path | None = typer.Option(
+        None, "--mask", help="object mask (.png or .npy, nonzero = object)"
+    ),
+    samples: int = typer.Option(0, "--samples", min=0, help="draws from the predicted mixture"),
+    estimator: str = typer.Option(
+        "most-likely", "--estimator", help="most-likely (3.3.1) | max-point (Table 3.2)"
+    ),
+    model: Path | None = typer.Option(
+        None, "--model", help="model.pt (default: artifacts/models/mdn/CATEGORY/model.pt)"
+    ),
+    seed: int = typer.Option(0, "--seed", help="seed of the samples"),
+) -> None:
+    """Kinematic model, configuration and geometry from one depth image, as JSON.
+
+    Example: artic predict depth.png --category microwave --camera kinect.json --samples 100
+    """
+    import json
+
+    from artic.cli.predict import predict as run
+    from artic.errors import InputError
+
+    if estimator not in ("most-likely", "max-point"):
+        raise InputError(f"--estimator: '{estimator}' (available: most-likely, max-point)")
+    result = run(image, category, camera, model, mask, samples, estimator, seed)
+    typer.echo(json.dumps(result, indent=2))
 
 
 @app.command("pipeline")

@@ -31,6 +31,7 @@ class RuntimeConfig(Strict):
     """How to run, not what to compute: never changes the output bytes."""
 
     workers: int = Field(0, ge=0, description="worker processes; 0 = the CPUs this process may use")
+    threads: int = Field(0, ge=0, description="torch threads; 0 = the CPUs this process may use")
 
 
 class StageConfig(Strict):

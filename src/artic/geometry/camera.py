@@ -73,3 +73,25 @@ class CameraIntrinsics(BaseModel):
         vv, uu = np.nonzero(depth > 0)
         z = depth[vv, uu].astype(np.float64)
         return np.stack([z, -(uu - self.cx) * z / self.fx, -(vv - self.cy) * z / self.fy], axis=1)
+
+
+def reproject(
+    depth: NDArray[np.floating[Any]], source: CameraIntrinsics, target: CameraIntrinsics
+) -> NDArray[np.float32]:
+    """Depth seen by `source` -> the depth image `target` sees from the same pose.
+
+    Every valid pixel is back-projected to a point and projected into `target`; where
+    several points land on one pixel the nearest wins (a z-buffer), and target pixels no
+    point lands on stay 0. Both cameras share the body frame (x forward, z up).
+    """
+    points = source.back_project(np.asarray(depth))
+    out = np.zeros((target.height, target.width), dtype=np.float32)
+    if len(points) == 0:
+        return out
+    uv = np.rint(target.project(points)).astype(np.int64)
+    inside = (uv[:, 0] >= 0) & (uv[:, 0] < target.width) & (uv[:, 1] >= 0)
+    inside &= uv[:, 1] < target.height
+    u, v, z = uv[inside, 0], uv[inside, 1], points[inside, 0]
+    order = np.argsort(-z)  # far first, so the nearest point is written last
+    out[v[order], u[order]] = z[order]
+    return out

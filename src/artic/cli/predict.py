@@ -1,0 +1,151 @@
+"""`artic predict`: one depth image -> kinematic model, configuration, geometry (JSON).
+
+Reads the image (`.npy` float metres, or a 16-bit PNG in millimetres; 0 = no return),
+the camera intrinsics (JSON with fx, fy, cx, cy, width, height), an optional object
+mask (PNG or .npy, nonzero = object), and the category's model (`artic train-mdn`).
+An image from another camera is reprojected into the training camera.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from artic.errors import InputError
+
+KIND = "kinematics-mdn"
+
+
+def read_depth(path: Path) -> NDArray[np.float32]:
+    """Depth in metres from `.npy` (float metres) or 16-bit PNG (millimetres)."""
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    if path.suffix.lower() == ".npy":
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as err:
+            raise InputError(f"{path}: not a readable .npy file ({err})") from None
+        if data.dtype.kind != "f":
+            raise InputError(f"{path}: .npy depth must be float metres, got {data.dtype}")
+        depth = data.astype(np.float32)
+    elif path.suffix.lower() == ".png":
+        from PIL import Image, UnidentifiedImageError
+
+        try:
+            with Image.open(path) as image:
+                if image.mode not in ("I;16", "I;16B", "I;16L", "I"):
+                    raise InputError(
+                        f"{path}: depth PNG must be 16-bit millimetres, got mode {image.mode}"
+                    )
+                depth = np.asarray(image, dtype=np.float32) * np.float32(0.001)
+        except UnidentifiedImageError:
+            raise InputError(f"{path}: not a readable PNG") from None
+    else:
+        raise InputError(
+            f"{path}: expected a .npy (metres) or 16-bit .png (millimetres) depth image"
+        )
+    if depth.ndim != 2:
+        raise InputError(f"{path}: depth must be one (H, W) image, got shape {depth.shape}")
+    if np.isnan(depth).any() or np.isinf(depth).any():
+        raise InputError(f"{path}: depth contains NaN or infinite values")
+    if (depth < 0).any():
+        raise InputError(f"{path}: depth contains negative values")
+    if not (depth > 0).any():
+        raise InputError(f"{path}: depth is all zeros (no returns)")
+    return depth
+
+
+def read_mask(path: Path, shape: tuple[int, ...]) -> NDArray[np.bool_]:
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    if path.suffix.lower() == ".npy":
+        mask = np.load(path, allow_pickle=False)
+    else:
+        from PIL import Image, UnidentifiedImageError
+
+        try:
+            with Image.open(path) as image:
+                mask = np.asarray(image)
+        except UnidentifiedImageError:
+            raise InputError(f"{path}: not a readable mask image") from None
+    if mask.ndim == 3:
+        mask = mask[..., 0]
+    if mask.shape != shape:
+        raise InputError(f"{path}: mask is {mask.shape}, depth image is {shape}")
+    return np.asarray(mask) != 0
+
+
+def read_camera(path: Path) -> Any:
+    from pydantic import ValidationError
+
+    from artic.geometry.camera import CameraIntrinsics
+
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        return CameraIntrinsics.from_json(path.read_text())
+    except json.JSONDecodeError as err:
+        raise InputError(f"{path}: not JSON ({err.msg})") from None
+    except ValidationError as err:
+        first = err.errors()[0]
+        field = ".".join(str(p) for p in first["loc"]) or "camera"
+        raise InputError(f"{path}: field {field}: {first['msg']}") from None
+
+
+def predict(
+    image: Path,
+    category: str,
+    camera: Path,
+    model: Path | None,
+    mask: Path | None,
+    samples: int,
+    estimator: str,
+    seed: int,
+) -> dict[str, Any]:
+    """Everything `artic predict` prints, as a dict."""
+    t0 = time.perf_counter()
+    from artic.artifacts.model_file import load_model_file
+    from artic.geometry.camera import reproject
+    from artic.kinematics.predict import Predictor
+    from artic.objects.categories import CATEGORIES
+
+    if category not in CATEGORIES:
+        known = ", ".join(sorted(CATEGORIES))
+        raise InputError(f"--category: unknown category '{category}' (available: {known})")
+    path = model or Path("artifacts/models/mdn") / category / "model.pt"
+    if not path.is_file():
+        raise InputError(
+            f"{path}: no model for {category}; train one with: artic train-mdn category={category}"
+        )
+    depth = read_depth(image)
+    cam = read_camera(camera)
+    if depth.shape != (cam.height, cam.width):
+        raise InputError(
+            f"{camera}: intrinsics are for {cam.width}x{cam.height}, "
+            f"{image} is {depth.shape[1]}x{depth.shape[0]}"
+        )
+    object_mask = read_mask(mask, depth.shape) if mask else None
+    predictor = Predictor.from_payload(load_model_file(path, KIND, category))
+    reprojected = cam != predictor.camera
+    if object_mask is not None:
+        depth = np.where(object_mask, depth, 0).astype(np.float32)
+        object_mask = None
+    if reprojected:
+        depth = reproject(depth, cam, predictor.camera)
+        if not (depth > 0).any():
+            raise InputError(f"{image}: no pixel lands inside the training camera's view")
+    t1 = time.perf_counter()
+    result = predictor.describe(depth, None, estimator, samples, seed)  # type: ignore[arg-type]
+    t2 = time.perf_counter()
+    result["input"] = {
+        "image": str(image),
+        "model": str(path),
+        "reprojected_to_training_camera": bool(reprojected),
+    }
+    result["timing_s"] = {"load_and_prepare": round(t1 - t0, 4), "predict": round(t2 - t1, 4)}
+    return result

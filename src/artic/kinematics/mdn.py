@@ -1,0 +1,154 @@
+"""Mixture density network of section 3.2 and the operations on its output mixture.
+
+Eq. 3.1: p(y | x) = sum_i pi_i(x) N(y | mu_i(x), diag(sigma_i(x)^2)), i = 1..m, with a
+ResNet-18 backbone and one fully connected head for each of pi, mu and sigma. It is
+trained by the negative log-likelihood (Eq. 3.2, `mdn_nll`). All quantities are in the
+units of the standardised targets (zero mean, unit variance per column; see targets.py).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal, NamedTuple
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+from artic.kinematics.resnet import ResNet18
+
+_LOG_2PI = math.log(2.0 * math.pi)
+#: softplus(_SIGMA_BIAS) = 1: components start with unit standard deviation
+_SIGMA_BIAS = math.log(math.e - 1.0)
+#: standard deviation of the head weights, times 1 / sqrt(in_features)
+_HEAD_WEIGHT_STD = 0.1
+
+Reduction = Literal["mean", "sum", "none"]
+
+
+class Mixture(NamedTuple):
+    """A batch of diagonal Gaussian mixtures with m components in D dimensions."""
+
+    log_pi: Tensor  # (B, m) log mixture weights, log_softmax-normalised
+    mu: Tensor  # (B, m, D) component means
+    sigma: Tensor  # (B, m, D) component standard deviations, > 0
+
+
+class MDNHead(nn.Module):
+    """Features (B, F) -> Mixture: three linear heads for pi logits, mu and sigma."""
+
+    def __init__(
+        self, in_features: int, out_dim: int, components: int = 20, sigma_floor: float = 1e-3
+    ) -> None:
+        super().__init__()
+        self.components = components
+        self.out_dim = out_dim
+        self.sigma_floor = sigma_floor
+        self.logits = nn.Linear(in_features, components)
+        self.mu = nn.Linear(in_features, components * out_dim)
+        self.sigma = nn.Linear(in_features, components * out_dim)
+        self._init_weights(in_features)
+
+    def _init_weights(self, in_features: int) -> None:
+        """A broad start: near-uniform weights, unit sigmas, means spread like the targets."""
+        for layer in (self.logits, self.mu, self.sigma):
+            nn.init.normal_(layer.weight, std=_HEAD_WEIGHT_STD / math.sqrt(in_features))
+        nn.init.zeros_(self.logits.bias)
+        nn.init.normal_(self.mu.bias)
+        nn.init.constant_(self.sigma.bias, _SIGMA_BIAS)
+
+    def forward(self, features: Tensor) -> Mixture:
+        """(B, F) -> Mixture with log_pi (B, m), mu and sigma (B, m, D)."""
+        shape = (features.shape[0], self.components, self.out_dim)
+        log_pi = F.log_softmax(self.logits(features), dim=-1)
+        mu = self.mu(features).reshape(shape)
+        sigma = F.softplus(self.sigma(features)).reshape(shape) + self.sigma_floor
+        return Mixture(log_pi, mu, sigma)
+
+
+class KinematicsMDN(nn.Module):
+    """Depth image (B, C, H, W) -> Mixture over the D standardised targets."""
+
+    def __init__(
+        self,
+        out_dim: int,
+        components: int = 20,
+        width: int = 64,
+        in_channels: int = 1,
+        sigma_floor: float = 1e-3,
+    ) -> None:
+        super().__init__()
+        self.hparams: dict[str, Any] = {
+            "out_dim": out_dim,
+            "components": components,
+            "width": width,
+            "in_channels": in_channels,
+            "sigma_floor": sigma_floor,
+        }
+        self.backbone = ResNet18(in_channels, width)
+        self.head = MDNHead(self.backbone.out_features, out_dim, components, sigma_floor)
+
+    def forward(self, depth: Tensor) -> Mixture:
+        """(B, C, H, W) network input -> Mixture (B, m, D)."""
+        mix: Mixture = self.head(self.backbone(depth))
+        return mix
+
+
+def mixture_log_prob(mix: Mixture, y: Tensor) -> Tensor:
+    """log p(y) of K query points per batch item: y (B, K, D) -> (B, K)."""
+    z = (y[:, :, None, :] - mix.mu[:, None]) / mix.sigma[:, None]  # (B, K, m, D)
+    log_n = -0.5 * z.square() - mix.sigma[:, None].log() - 0.5 * _LOG_2PI
+    return torch.logsumexp(mix.log_pi[:, None] + log_n.sum(-1), dim=-1)
+
+
+def mdn_nll(mix: Mixture, y: Tensor, reduction: Reduction = "mean") -> Tensor:
+    """Negative log-likelihood (Eq. 3.2) of targets y (B, D): scalar, or (B,) for "none"."""
+    nll = -mixture_log_prob(mix, y[:, None])[:, 0]
+    if reduction == "mean":
+        return nll.mean()
+    if reduction == "sum":
+        return nll.sum()
+    if reduction == "none":
+        return nll
+    raise ValueError(f"reduction must be 'mean', 'sum' or 'none', not {reduction!r}")
+
+
+def most_likely(mix: Mixture) -> Tensor:
+    """The component mean with the highest mixture density (section 3.3.1): (B, D)."""
+    best = mixture_log_prob(mix, mix.mu).argmax(dim=-1)  # (B,)
+    return mix.mu[torch.arange(len(best), device=best.device), best]
+
+
+def sample(mix: Mixture, n: int, generator: torch.Generator | None = None) -> Tensor:
+    """n draws per batch item: (B, n, D); reproducible with a seeded generator."""
+    component = torch.multinomial(mix.log_pi.exp(), n, replacement=True, generator=generator)
+    rows = torch.arange(len(component), device=component.device)[:, None]
+    mu, sigma = mix.mu[rows, component], mix.sigma[rows, component]  # (B, n, D)
+    noise = torch.randn(mu.shape, generator=generator, dtype=mu.dtype, device=mu.device)
+    return mu + sigma * noise
+
+
+def marginal_cdf(mix: Mixture, y: Tensor) -> Tensor:
+    """P(Y_d <= y_d) under each 1-D marginal of the mixture: y (B, D) -> (B, D)."""
+    phi = torch.special.ndtr((y[:, None] - mix.mu) / mix.sigma)  # (B, m, D)
+    return (mix.log_pi.exp()[:, :, None] * phi).sum(dim=1)
+
+
+@torch.no_grad()
+def marginal_quantile(mix: Mixture, q: float, iterations: int = 60) -> Tensor:
+    """The q-quantile of each 1-D marginal, (B, D), by bisection on `marginal_cdf`."""
+    lo = (mix.mu - 10 * mix.sigma).amin(dim=1)
+    hi = (mix.mu + 10 * mix.sigma).amax(dim=1)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        below = marginal_cdf(mix, mid) < q
+        lo = torch.where(below, mid, lo)
+        hi = torch.where(below, hi, mid)
+    return 0.5 * (lo + hi)
+
+
+def marginal_interval(mix: Mixture, level: float) -> tuple[Tensor, Tensor]:
+    """Central `level` interval of each 1-D marginal: (lower, upper), each (B, D)."""
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"level must be in (0, 1), not {level}")
+    return marginal_quantile(mix, 0.5 * (1 - level)), marginal_quantile(mix, 0.5 * (1 + level))

@@ -1,0 +1,145 @@
+"""Kinematic model, configuration and geometry of an object from one depth image.
+
+`Predictor` wraps a trained MDN (`model.pt` of `artic train-mdn`): depth in the
+training camera -> mixture over the label columns (docs/formats.md) -> an estimate.
+Estimators:
+- `most-likely` (section 3.3.1): the component mean with the highest mixture density;
+- `max-point` (section 3.3.2, Table 3.2): as most-likely, but each joint's axis origin
+  is the point of the observed cloud with the highest density under the model's
+  marginal over that origin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+import torch
+from numpy.typing import NDArray
+
+from artic.geometry.camera import CameraIntrinsics
+from artic.kinematics.mdn import KinematicsMDN, Mixture, most_likely, sample
+from artic.kinematics.preprocess import network_input
+from artic.kinematics.targets import TargetCodec
+
+Estimator = Literal["most-likely", "max-point"]
+
+
+@dataclass(frozen=True)
+class Predictor:
+    category: str
+    model: KinematicsMDN
+    codec: TargetCodec
+    camera: CameraIntrinsics
+    dof: int
+    joint_type: str
+
+    @classmethod
+    def from_payload(cls, payload: dict[str, Any]) -> Predictor:
+        """From `artifacts.model_file.load_model_file(..., kind="kinematics-mdn")`."""
+        meta = payload["meta"]
+        model = KinematicsMDN(**payload["hparams"])
+        model.load_state_dict(payload["state_dict"])
+        model.eval()
+        return cls(
+            payload["category"],
+            model,
+            TargetCodec.from_dict(meta["codec"]),
+            CameraIntrinsics.model_validate(meta["camera"]),
+            int(meta["dof"]),
+            str(meta["joint_type"]),
+        )
+
+    @torch.no_grad()
+    def mixture(
+        self, depth: NDArray[np.floating], mask: NDArray[np.bool_] | None = None
+    ) -> Mixture:
+        """The network's mixture (standardised units) for (N, H, W) or (H, W) depth."""
+        mix: Mixture = self.model(network_input(depth, mask))
+        return mix
+
+    def estimate(
+        self,
+        depth: NDArray[np.floating],
+        mask: NDArray[np.bool_] | None = None,
+        estimator: Estimator = "most-likely",
+    ) -> NDArray[np.float64]:
+        """(L,) label vector for one (H, W) image in the training camera."""
+        mix = self.mixture(depth, mask)
+        label = self.codec.decode(most_likely(mix).numpy())[0]
+        if estimator == "max-point":
+            points = self.camera.back_project(
+                np.where(mask, depth, 0) if mask is not None else depth
+            )
+            for j in range(self.dof):
+                label[self._origin(j)] = self._max_point(mix, j, points)
+        return label
+
+    def _origin(self, joint: int) -> list[int]:
+        return [self.codec.columns.index(f"j{joint}_origin_{a}") for a in "xyz"]
+
+    def _max_point(
+        self, mix: Mixture, joint: int, points: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """The cloud point most likely under the marginal of joint `joint`'s origin."""
+        cols = self._origin(joint)
+        learned = np.flatnonzero(self.codec.learned)
+        dims = [int(np.flatnonzero(learned == c)[0]) for c in cols]
+        z = (points - self.codec.mean[cols]) / self.codec.std[cols]
+        mu = mix.mu[0, :, dims].numpy()  # (m, 3)
+        sigma = mix.sigma[0, :, dims].numpy()
+        log_pi = mix.log_pi[0].numpy()
+        diff = (z[:, None, :] - mu[None]) / sigma[None]
+        log_n = -0.5 * (diff**2).sum(-1) - np.log(sigma).sum(-1)[None]
+        score = np.logaddexp.reduce(log_pi[None] + log_n, axis=1)
+        return points[int(np.argmax(score))]
+
+    def describe(
+        self,
+        depth: NDArray[np.floating],
+        mask: NDArray[np.bool_] | None = None,
+        estimator: Estimator = "most-likely",
+        samples: int = 0,
+        seed: int = 0,
+    ) -> dict[str, Any]:
+        """The JSON `artic predict` prints (see docs/kinematics.md)."""
+        label = self.estimate(depth, mask, estimator)
+        col = {c: i for i, c in enumerate(self.codec.columns)}
+        unit = "rad" if self.joint_type == "revolute" else "m"
+        joints = []
+        for j in range(self.dof):
+            direction = np.array([label[col[f"j{j}_direction_{a}"]] for a in "xyz"])
+            joints.append({
+                "type": self.joint_type,
+                "origin": [label[col[f"j{j}_origin_{a}"]] for a in "xyz"],
+                "direction": (direction / max(np.linalg.norm(direction), 1e-12)).tolist(),
+                "configuration": label[col[f"j{j}_q"]],
+                "configuration_unit": unit,
+                "part_origin_in_axis_frame": [label[col[f"j{j}_part_{a}"]] for a in "xyz"],
+            })  # fmt: skip
+        mix = self.mixture(depth, mask)
+        out: dict[str, Any] = {
+            "category": self.category,
+            "frame": "camera body frame: x forward, y left, z up; metres, radians",
+            "estimator": estimator,
+            "joints": joints,
+            "geometry": {
+                "depth": label[col["depth"]],
+                "width": label[col["width"]],
+                "height": label[col["height"]],
+                "chirality": 1 if label[col["chirality"]] >= 0 else -1,
+                "pose": {k: label[col[f"pose_{k}"]] for k in ("x", "y", "z", "yaw")},
+            },
+            "estimate": dict(zip(self.codec.columns, label.tolist(), strict=True)),
+            "mixture": {
+                "columns": list(self.codec.columns),
+                "weights": mix.log_pi[0].exp().tolist(),
+                "means": self.codec.decode(mix.mu[0].numpy()).tolist(),
+                "stds": self.codec.decode_scale(mix.sigma[0].numpy()).tolist(),
+            },
+        }
+        if samples > 0:
+            draws = sample(mix, samples, torch.Generator().manual_seed(seed))
+            out["samples"] = self.codec.decode(draws[0].numpy()).tolist()
+        return out

@@ -1,0 +1,162 @@
+"""Training of the per-category MDN (Eq. 3.2): Adam on the negative log-likelihood,
+validation on withheld objects after every epoch, early stopping on validation NLL.
+
+Resumable and reproducible: the order of epoch e's batches and its augmentation come
+from generators seeded by (seed, e), so a run resumed from the checkpoint of epoch e
+continues exactly as the uninterrupted run would. Saving checkpoints is the caller's
+(`on_epoch`); this module touches no files.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from artic.kinematics.data import DepthSplit
+from artic.kinematics.mdn import KinematicsMDN, mdn_nll
+from artic.kinematics.preprocess import augment
+from artic.kinematics.targets import TargetCodec
+
+log = logging.getLogger("artic")
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    epochs: int
+    batch_size: int
+    lr: float
+    weight_decay: float
+    patience: int
+    augment_dropout: float
+    seed: int
+    channels_last: bool = True
+    log_every_s: float = 30.0
+
+
+@dataclass
+class FitState:
+    """Everything needed to resume: completed epochs, early-stopping bookkeeping,
+    per-epoch metrics, and the best weights so far."""
+
+    epoch: int = 0
+    best_val_nll: float = math.inf
+    best_epoch: int = 0
+    bad_epochs: int = 0
+    stopped_early: bool = False
+    history: list[dict[str, float]] = field(default_factory=list)
+    best_weights: dict[str, torch.Tensor] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> FitState:
+        return cls(**data)
+
+
+def fit(
+    model: KinematicsMDN,
+    optimizer: torch.optim.Optimizer,
+    train: DepthSplit,
+    val: DepthSplit,
+    codec: TargetCodec,
+    cfg: FitConfig,
+    state: FitState,
+    device: torch.device,
+    on_epoch: Callable[[FitState], None],
+) -> FitState:
+    """Train from `state` until `cfg.epochs` or early stopping; `on_epoch(state)` after
+    each epoch (state.epoch = epochs done)."""
+    model.to(device)
+    if cfg.channels_last:
+        model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
+    y_train = torch.from_numpy(codec.encode(train.labels))
+    while state.epoch < cfg.epochs and not state.stopped_early:
+        t0 = time.perf_counter()
+        train_nll = _train_epoch(model, optimizer, train, y_train, cfg, state.epoch, device)
+        val_nll = evaluate_nll(model, val, codec, cfg.batch_size, device, cfg.channels_last)
+        state.epoch += 1
+        if val_nll < state.best_val_nll:
+            state.best_val_nll, state.best_epoch, state.bad_epochs = val_nll, state.epoch, 0
+            state.best_weights = copy.deepcopy({k: v.cpu() for k, v in model.state_dict().items()})
+        else:
+            state.bad_epochs += 1
+            state.stopped_early = state.bad_epochs >= cfg.patience
+        seconds = time.perf_counter() - t0
+        lr = float(optimizer.param_groups[0]["lr"])
+        state.history.append(
+            {"epoch": state.epoch, "train_nll": train_nll, "val_nll": val_nll,
+             "seconds": seconds, "lr": lr}
+        )  # fmt: skip
+        remaining = cfg.epochs - state.epoch
+        log.info(
+            "epoch %d/%d: train NLL %.3f, val NLL %.3f (best %.3f at %d), %.0f s, ETA %s",
+            state.epoch, cfg.epochs, train_nll, val_nll, state.best_val_nll, state.best_epoch,
+            seconds, "early stop" if state.stopped_early else f"{remaining * seconds:.0f} s",
+        )  # fmt: skip
+        on_epoch(state)
+    return state
+
+
+def _train_epoch(
+    model: KinematicsMDN,
+    optimizer: torch.optim.Optimizer,
+    data: DepthSplit,
+    targets: torch.Tensor,
+    cfg: FitConfig,
+    epoch: int,
+    device: torch.device,
+) -> float:
+    model.train()
+    order = np.random.default_rng([cfg.seed, epoch]).permutation(len(data))
+    generator = torch.Generator(device=device).manual_seed(cfg.seed * 100_003 + epoch)
+    total, seen, last_log = 0.0, 0, time.perf_counter()
+    for start in range(0, len(order), cfg.batch_size):
+        index = np.sort(order[start : start + cfg.batch_size])
+        if len(index) < 2:
+            continue  # BatchNorm needs two images per batch in training mode
+        x = _to_device(data.inputs(index), device, cfg.channels_last)
+        x = augment(x, cfg.augment_dropout, generator)
+        loss = mdn_nll(model(x), targets[index].to(device))
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        total += loss.item() * len(index)
+        seen += len(index)
+        if time.perf_counter() - last_log > cfg.log_every_s:
+            log.info("  epoch %d: %d/%d images, NLL %.3f", epoch + 1, seen, len(data), total / seen)
+            last_log = time.perf_counter()
+    return total / max(seen, 1)
+
+
+@torch.no_grad()
+def evaluate_nll(
+    model: KinematicsMDN,
+    data: DepthSplit,
+    codec: TargetCodec,
+    batch_size: int,
+    device: torch.device,
+    channels_last: bool = True,
+) -> float:
+    """Mean NLL (standardised units) of `data` under the model in eval mode."""
+    model.eval()
+    y = torch.from_numpy(codec.encode(data.labels))
+    total = 0.0
+    for start in range(0, len(data), batch_size):
+        index = slice(start, start + batch_size)
+        x = _to_device(data.inputs(index), device, channels_last)
+        total += float(mdn_nll(model(x), y[index].to(device), reduction="sum"))
+    return total / max(len(data), 1)
+
+
+def _to_device(x: torch.Tensor, device: torch.device, channels_last: bool) -> torch.Tensor:
+    memory = torch.channels_last if channels_last else torch.contiguous_format
+    return x.to(device=device, memory_format=memory)

@@ -1,0 +1,168 @@
+"""train-mdn and predict end to end on the tiny dataset."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from artic.artifacts.depth_dataset import DepthDataset
+from artic.artifacts.model_file import load_model_file, save_model_file
+from artic.cli.train_mdn import KIND
+from artic.errors import InputError
+from conftest import run_cli
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("mdn") / "microwave"
+    code, _, err = run_cli(
+        "train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}", f"out={out}"
+    )
+    assert code == 0, err
+    return out
+
+
+def test_train_mdn_writes_model_metrics_and_card(tiny_model):
+    for name in ("model.pt", "metrics.csv", "model.json", "model_card.md", "manifest.json"):
+        assert (tiny_model / name).is_file(), name
+    rows = (tiny_model / "metrics.csv").read_text().splitlines()
+    assert rows[0] == "epoch,train_nll,val_nll,seconds,lr" and len(rows) == 3
+    payload = load_model_file(tiny_model / "model.pt", KIND, "microwave")
+    assert payload["hparams"]["width"] == 8 and payload["meta"]["dof"] == 1
+    assert np.isfinite(payload["meta"]["best_val_nll"])
+
+
+def _same_weights(a: Path, b: Path) -> bool:
+    x = load_model_file(a / "model.pt", KIND)["state_dict"]
+    y = load_model_file(b / "model.pt", KIND)["state_dict"]
+    return x.keys() == y.keys() and all(torch.equal(x[k], y[k]) for k in x)
+
+
+def test_train_mdn_is_reproducible(tiny_depth, tiny_model, tmp_path):
+    args = ["train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}"]
+    code, _, err = run_cli(*args, f"out={tmp_path / 'again'}")
+    assert code == 0, err
+    assert _same_weights(tiny_model, tmp_path / "again"), "same seed, same weights"
+
+
+def test_interrupted_training_resumes_from_the_last_epoch(
+    tiny_depth, tiny_model, tmp_path, monkeypatch
+):
+    from artic.kinematics import train
+
+    epochs: list[int] = []
+    original = train._train_epoch
+
+    def interrupt_second(*args, **kwargs):
+        epochs.append(args[5])
+        if len(epochs) == 2:
+            raise KeyboardInterrupt
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(train, "_train_epoch", interrupt_second)
+    args = ["train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}"]
+    out = tmp_path / "resumed"
+    code, _, err = run_cli(*args, f"out={out}")
+    assert code == 130 and "resume" in err and not out.exists()
+    epochs.clear()
+    monkeypatch.setattr(train, "_train_epoch", original)
+    code, _, err = run_cli(*args, f"out={out}")
+    assert code == 0, err
+    assert _same_weights(tiny_model, out), "resumed = uninterrupted"
+    assert len((out / "metrics.csv").read_text().splitlines()) == 3
+
+
+def test_train_mdn_refuses_a_dataset_of_another_category(tiny_depth, tmp_path):
+    code, _, err = run_cli(
+        "train-mdn", "debug=tiny", "category=drawer", f"depth={tiny_depth}", f"out={tmp_path / 'x'}"
+    )
+    assert code == 2 and "holds microwave images, not drawer" in err
+
+
+@pytest.fixture(scope="module")
+def image(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    ds = DepthDataset.open(tiny_depth)
+    shard = next(ds.shards(decode=False))
+    folder = tmp_path_factory.mktemp("predict")
+    png = folder / "depth.png"
+    Image.fromarray(shard.depth[0]).save(png)
+    np.save(folder / "depth.npy", shard.depth[0].astype(np.float32) / 1000)
+    camera = folder / "camera.json"
+    camera.write_text(json.dumps(ds.info["camera"]))
+    return png, folder / "depth.npy", camera
+
+
+def test_predict_prints_json(tiny_model, image):
+    png, npy, camera = image
+    for path in (png, npy):
+        code, out, err = run_cli(
+            "predict", str(path), "--category", "microwave", "--camera", str(camera),
+            "--model", str(tiny_model / "model.pt"), "--samples", "5",
+        )  # fmt: skip
+        assert code == 0, err
+        result = json.loads(out)
+        (joint,) = result["joints"]
+        assert joint["type"] == "revolute" and len(joint["origin"]) == 3
+        assert np.linalg.norm(joint["direction"]) == pytest.approx(1.0)
+        assert len(result["samples"]) == 5 and len(result["mixture"]["weights"]) == 3
+        assert sum(result["mixture"]["weights"]) == pytest.approx(1.0, abs=1e-5)
+        assert result["input"]["reprojected_to_training_camera"] is False
+
+
+def test_predict_reprojects_another_camera_and_max_point(tiny_model, image, tmp_path):
+    _, npy, camera = image
+    cam = json.loads(camera.read_text())
+    depth = np.load(npy)
+    big = np.kron(depth, np.ones((2, 2), np.float32))  # the same view at twice the size
+    np.save(tmp_path / "big.npy", big)
+    cam2 = {k: 2 * cam[k] for k in ("fx", "fy", "width", "height")}
+    cam2 |= {"cx": 2 * cam["cx"] + 0.5, "cy": 2 * cam["cy"] + 0.5}
+    (tmp_path / "cam2.json").write_text(json.dumps(cam2))
+    code, out, err = run_cli(
+        "predict", str(tmp_path / "big.npy"), "--category", "microwave", "--camera",
+        str(tmp_path / "cam2.json"), "--model", str(tiny_model / "model.pt"),
+        "--estimator", "max-point",
+    )  # fmt: skip
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["input"]["reprojected_to_training_camera"] is True
+    origin = np.array(result["joints"][0]["origin"])
+    assert origin[0] > 0.3, "max-point picks a point of the observed cloud"
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda d: np.save(d / "x.npy", np.zeros((64, 64), np.float32)), "all zeros"),
+        (lambda d: np.save(d / "x.npy", np.full((64, 64), np.nan, np.float32)), "NaN"),
+        (lambda d: np.save(d / "x.npy", np.ones((64, 64), np.int32)), "float metres"),
+        (lambda d: np.save(d / "x.npy", np.ones((32, 64), np.float32)), "intrinsics are for"),
+    ],
+)
+def test_predict_bad_images_exit_2(tiny_model, image, tmp_path, make, message):
+    make(tmp_path)
+    code, _, err = run_cli(
+        "predict", str(tmp_path / "x.npy"), "--category", "microwave", "--camera", str(image[2]),
+        "--model", str(tiny_model / "model.pt"),
+    )  # fmt: skip
+    assert code == 2 and message in err, err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_predict_refuses_unknown_category_missing_and_foreign_models(tiny_model, image, tmp_path):
+    png, _, camera = image
+    base = ["predict", str(png), "--camera", str(camera)]
+    code, _, err = run_cli(*base, "--category", "sofa")
+    assert code == 2 and "unknown category 'sofa'" in err
+    code, _, err = run_cli(*base, "--category", "drawer", "--model", str(tmp_path / "none.pt"))
+    assert code == 2 and "no model for drawer" in err
+    code, _, err = run_cli(*base, "--category", "drawer", "--model", str(tiny_model / "model.pt"))
+    assert code == 2 and "a model of category microwave, not drawer" in err
+    save_model_file(tmp_path / "other.pt", "point-segmenter", "microwave", {}, {}, {})
+    with pytest.raises(InputError, match="a point-segmenter model, not a kinematics-mdn model"):
+        load_model_file(tmp_path / "other.pt", KIND, "microwave")
