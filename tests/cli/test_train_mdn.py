@@ -166,3 +166,25 @@ def test_predict_refuses_unknown_category_missing_and_foreign_models(tiny_model,
     save_model_file(tmp_path / "other.pt", "point-segmenter", "microwave", {}, {}, {})
     with pytest.raises(InputError, match="a point-segmenter model, not a kinematics-mdn model"):
         load_model_file(tmp_path / "other.pt", KIND, "microwave")
+
+
+def test_evaluate_mdn_writes_table_3_1_and_calibration(tiny_model, tiny_depth, tmp_path):
+    out = tmp_path / "report"
+    code, _, err = run_cli(
+        "evaluate", "mdn", "debug=tiny", "category=microwave", f"model={tiny_model}",
+        f"depth={tiny_depth}", f"out={out}",
+    )  # fmt: skip
+    assert code == 0, err
+    report = (out / "report.md").read_text()
+    for method in ("Mean", "NN", "ICP", "Ours"):
+        assert f"| {method} |" in report
+    assert "| 90% |" in report
+    summary = (out / "summary.csv").read_text().splitlines()
+    assert summary[0].startswith("method,images,position_cm_mean")
+    assert len(summary) == 5
+    mean_row = dict(zip(summary[0].split(","), summary[1].split(","), strict=True))
+    assert float(mean_row["position_cm_mean"]) > 0
+    calibration = (out / "calibration.csv").read_text().splitlines()
+    assert calibration[0].startswith("nominal,") and len(calibration) == 20
+    for name in ("errors.png", "calibration.png", "examples.png", "errors.csv"):
+        assert (out / name).stat().st_size > 0

@@ -33,6 +33,7 @@ STAGE_MODULES: dict[str, str] = {
     "generate-dataset": "artic.cli.generate_dataset",
     "render-depth": "artic.cli.render_depth",
     "train-mdn": "artic.cli.train_mdn",
+    "evaluate-mdn": "artic.cli.evaluate_mdn",
 }
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -121,6 +122,24 @@ def train_mdn(
     Example: artic train-mdn category=microwave
     """
     run_stage_command("train-mdn", overrides, cfg, force)
+
+
+evaluate_app = typer.Typer(
+    help="Evaluation reports on withheld objects (tables of the thesis).", no_args_is_help=True
+)
+app.add_typer(evaluate_app, name="evaluate")
+
+
+@evaluate_app.command("mdn", context_settings=_EXTRA)
+@handle_errors
+def evaluate_mdn(
+    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
+) -> None:
+    """Table 3.1 for one category: Ours vs Mean, NN, ICP, and calibration.
+
+    Example: artic evaluate mdn category=microwave
+    """
+    run_stage_command("evaluate-mdn", overrides, cfg, force)
 
 
 @app.command("predict")

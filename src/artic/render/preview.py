@@ -32,9 +32,10 @@ def draw_axes(
     axes: Sequence[Axis],
     joint_types: Sequence[str],
     camera: CameraIntrinsics,
+    colour: tuple[int, int, int] | None = None,
 ) -> NDArray[np.uint8]:
     """Draw each axis as a segment from its origin along its direction, with a dot at
-    the origin: red revolute, green prismatic."""
+    the origin: red revolute, green prismatic, or all in `colour`."""
     pil = Image.fromarray(image)
     draw = ImageDraw.Draw(pil)
     r = max(1, camera.width // 100)
@@ -43,9 +44,9 @@ def draw_axes(
         if (ends[:, 0] <= 1e-3).any():
             continue  # behind the camera
         (u0, v0), (u1, v1) = camera.project(ends)
-        colour = _COLOURS.get(kind, (255, 255, 0))
-        draw.line([(u0, v0), (u1, v1)], fill=colour, width=max(1, camera.width // 128))
-        draw.ellipse([u0 - r, v0 - r, u0 + r, v0 + r], fill=colour)
+        fill = colour or _COLOURS.get(kind, (255, 255, 0))
+        draw.line([(u0, v0), (u1, v1)], fill=fill, width=max(1, camera.width // 128))
+        draw.ellipse([u0 - r, v0 - r, u0 + r, v0 + r], fill=fill)
     return np.asarray(pil)
 
 
