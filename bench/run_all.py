@@ -7,9 +7,12 @@
    16 images per object, all CPUs) at two dataset sizes: labelled images/s and the peak
    resident memory of any one process (bounded: it must not grow with the dataset).
 
+3. The Chapter 3 network: training images/s, forward latency and throughput, and the
+   wall time of an `artic predict` process.
+
 Prints a Markdown report and writes bench/results/latest.json.
 Usage: python bench/run_all.py [--objects 550 2200] [--scenes 24] [--repeats 5]
-       [--only backends|e2e]
+       [--only backends|e2e|network]
 (--scenes: objects over the three categories, each rendered at 16 configurations)
 """
 
@@ -157,12 +160,85 @@ def _e2e_child(objects: int, tmp: Path) -> None:
     )
 
 
+def network_benchmark(tmp: Path) -> list[dict[str, object]]:
+    """The Chapter 3 MDN on this CPU: training images/s (batch 64, Adam step), forward
+    latency at batch 1 (median of 30) and throughput at batch 64, and the wall time of a
+    whole `artic predict` process (imports, model loading, one image)."""
+    import torch
+
+    from artic.artifacts.model_file import save_model_file
+    from artic.cli.stage_runner import available_cpus
+    from artic.geometry.camera import CameraIntrinsics
+    from artic.kinematics.mdn import KinematicsMDN, mdn_nll
+    from artic.kinematics.targets import TargetCodec
+    from artic.objects.labels import label_columns
+
+    torch.set_num_threads(available_cpus())
+    cam = CameraIntrinsics(fx=140, fy=140, cx=63.5, cy=63.5, width=128, height=128)
+    columns = label_columns(1)
+    codec = TargetCodec.fit(columns, np.random.default_rng(0).normal(size=(100, len(columns))))
+    results = []
+    for width in (64, 32):
+        torch.manual_seed(0)
+        model = KinematicsMDN(codec.dim, 20, width).to(memory_format=torch.channels_last)
+        opt = torch.optim.Adam(model.parameters(), 1e-3)
+        x = torch.rand(64, 1, 128, 128).to(memory_format=torch.channels_last)
+        y = torch.randn(64, codec.dim)
+        times = []
+        for _ in range(6):
+            t0 = time.perf_counter()
+            loss = mdn_nll(model(x), y)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            times.append(time.perf_counter() - t0)
+        model.eval()
+        with torch.no_grad():
+            for _ in range(3):
+                model(x[:1])
+            single = []
+            for _ in range(30):
+                t0 = time.perf_counter()
+                model(x[:1])
+                single.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            model(x)
+            batch = 64 / (time.perf_counter() - t0)
+        path = tmp / f"mdn-{width}.pt"
+        meta = {"codec": codec.to_dict(), "camera": cam.model_dump(), "dof": 1,
+                "joint_type": "revolute"}  # fmt: skip
+        save_model_file(
+            path, "kinematics-mdn", "microwave", model.hparams, model.state_dict(), meta
+        )
+        depth = np.zeros((128, 128), np.float32)
+        depth[40:90, 30:100] = 2.0
+        np.save(tmp / "depth.npy", depth)
+        (tmp / "camera.json").write_text(cam.model_dump_json())
+        walls = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            subprocess.run(
+                [*ARTIC, "predict", str(tmp / "depth.npy"), "--category", "microwave",
+                 "--camera", str(tmp / "camera.json"), "--model", str(path)],
+                check=True, capture_output=True,
+            )  # fmt: skip
+            walls.append(time.perf_counter() - t0)
+        results.append({
+            "input": "128x128", "width": width,
+            "train_images_per_s": round(64 / statistics.median(times[1:]), 1),
+            "forward_batch1_ms": round(1000 * statistics.median(single), 2),
+            "forward_batch64_images_per_s": round(batch, 1),
+            "predict_process_wall_s": round(statistics.median(walls), 2),
+        })  # fmt: skip
+    return results
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", type=int, nargs="+", default=[550, 2200])
     parser.add_argument("--scenes", type=int, default=24)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--only", choices=["backends", "e2e"], default=None)
+    parser.add_argument("--only", choices=["backends", "e2e", "network"], default=None)
     parser.add_argument("--e2e-child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.e2e_child:
@@ -170,8 +246,10 @@ def main() -> None:
         return
     with tempfile.TemporaryDirectory(prefix="artic-bench-") as tmp_dir:
         tmp = Path(tmp_dir)
-        backends = [] if args.only == "e2e" else backend_benchmark(args.scenes, args.repeats, tmp)
-        e2e = [] if args.only == "backends" else [end_to_end(n, tmp) for n in sorted(args.objects)]
+        run = {args.only} if args.only else {"backends", "e2e", "network"}
+        backends = backend_benchmark(args.scenes, args.repeats, tmp) if "backends" in run else []
+        e2e = [end_to_end(n, tmp) for n in sorted(args.objects)] if "e2e" in run else []
+        network = network_benchmark(tmp) if "network" in run else []
     report = {
         "machine": {
             "cpus": len(__import__("os").sched_getaffinity(0)),
@@ -180,6 +258,7 @@ def main() -> None:
         },
         "backends": backends,
         "end_to_end": e2e,
+        "network": network,
     }
     out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -207,6 +286,16 @@ def main() -> None:
             f"| {r['objects']} | {r['images']} | {r['generate_s']} | {r['render_s']} "
             f"| {r['images_per_s']} | {r['peak_rss_mib']} |"
         )
+
+    print()
+    print(
+        "| input | width | train img/s | forward batch 1 | forward batch 64 | artic predict wall |"
+    )
+    print("|---|---|---|---|---|---|")
+    for r in network:
+        print(f"| {r['input']} | {r['width']} | {r['train_images_per_s']} "
+              f"| {r['forward_batch1_ms']} ms | {r['forward_batch64_images_per_s']} img/s "
+              f"| {r['predict_process_wall_s']} s |")  # fmt: skip
 
 
 if __name__ == "__main__":
