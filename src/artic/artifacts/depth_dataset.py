@@ -71,6 +71,14 @@ class DepthDataset:
         info = json.loads(verify_file(root, manifest, INFO).read_text())
         return cls(root, manifest, info)
 
+    @classmethod
+    def open_category(cls, root: Path, category: str, field: str = "depth") -> DepthDataset:
+        """`open`, and InputError naming `field` unless the images are of `category`."""
+        ds = cls.open(root)
+        if ds.info["category"] != category:
+            raise InputError(f"{field}: {root} holds {ds.info['category']} images, not {category}")
+        return ds
+
     @property
     def label_columns(self) -> list[str]:
         return list(self.info["label_columns"])

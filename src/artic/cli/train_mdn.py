@@ -62,11 +62,7 @@ class TrainMdnConfig(StageConfig):
 
 
 def _plan(cfg: TrainMdnConfig, inputs: dict[str, Path]) -> Plan:
-    ds = DepthDataset.open(inputs["depth"])
-    if ds.info["category"] != cfg.category.name:
-        raise InputError(
-            f"depth: {inputs['depth']} holds {ds.info['category']} images, not {cfg.category.name}"
-        )
+    DepthDataset.open_category(inputs["depth"], cfg.category.name)
     return Plan([cfg.train.epochs], "epochs")
 
 
