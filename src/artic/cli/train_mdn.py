@@ -90,7 +90,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     codec = TargetCodec.fit(ds.label_columns, train.labels)
     torch.manual_seed(cfg.seed)
     m = cfg.model
-    model = KinematicsMDN(codec.dim, m.components, m.width, 1, m.sigma_floor)
+    model = KinematicsMDN(codec.dim, m.components, m.width, 1, m.sigma_floor).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     resume = WorkDir(Path(cfg.out)).resume_dir("train-mdn") / "last.pt"
     state = FitState()
