@@ -1,0 +1,168 @@
+"""Gymnasium environments of the Chapter 5 tasks (section 5.3.1).
+
+`ArticTaskEnv(task, seed)` wraps a `TaskWorld`:
+- observation s_t = [q_R, q_O] (float32, 7 + dof), clipped to `observation_space`
+  (robot joint limits widened by `JOINT_MARGIN`, since PyBullet's limits are soft;
+  object within `OBJECT_BOUND` of its range);
+- action a_t = commanded joint velocities (7,), rad/s; the simulator receives them
+  clipped to the velocity limits (`action_space`);
+- reward Eq. 5.1, r_t = -c ||q_O* - q_O||^2 - a_t^T R a_t with R = r I, evaluated on
+  the object state after the step and the action as given (before clipping);
+- `terminated` is always False; `truncated` once `horizon` steps are taken;
+- `info`: `success` (||q_O - q_O*|| <= success_threshold) and `q_object`.
+`reset(seed=...)` draws the start configuration q_R(0) = start_q + N(0, start_noise^2)
+(clipped to the joint limits) from the environment's generator; the same seed gives the
+same trajectory, bit for bit.
+
+Gymnasium ids `artic/Drawer-v0`, `artic/Microwave-v0`, `artic/TBall-v0` exist after
+`register_envs()` (not at import of artic).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+from artic.sim.tasks import TaskConfig, TBallScene, get_task
+from artic.sim.world import TaskWorld
+
+JOINT_MARGIN = 0.1  # rad beyond the URDF limits still inside the observation space
+OBJECT_BOUND = 10.0  # m or rad beyond the object range still inside the observation space
+
+ENV_IDS = {
+    "artic/Drawer-v0": "drawer",
+    "artic/Microwave-v0": "microwave",
+    "artic/TBall-v0": "tball",
+}
+
+
+def kinematic_reward(
+    q_object: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    action: NDArray[np.float64],
+    c: float,
+    r: float,
+) -> float:
+    """Eq. 5.1: -c ||q_O* - q_O||^2 - a^T (r I) a. q_object, goal: (dof,); action: (7,)."""
+    error = np.asarray(goal, dtype=np.float64) - np.asarray(q_object, dtype=np.float64)
+    a = np.asarray(action, dtype=np.float64)
+    return float(-c * error @ error - r * a @ a)
+
+
+def _object_range(cfg: TaskConfig) -> tuple[float, float]:
+    scene = cfg.scene
+    if isinstance(scene, TBallScene):
+        return scene.travel
+    return scene.joint_limits
+
+
+class ArticTaskEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
+    """One Chapter 5 task as a Gymnasium environment (see the module docstring)."""
+
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium API)
+
+    def __init__(self, task: str | TaskConfig = "drawer", seed: int | None = None) -> None:
+        self.task = get_task(task) if isinstance(task, str) else task
+        self.world = TaskWorld.create(self.task, np.random.default_rng(seed))
+        low, high = self.world.robot_limits()
+        lo, hi = _object_range(self.task)
+        dof = self.world.dof_object
+        self._observation_box = gym.spaces.Box(
+            low=np.concatenate([low - JOINT_MARGIN, np.full(dof, lo - OBJECT_BOUND)]).astype(
+                np.float32
+            ),
+            high=np.concatenate([high + JOINT_MARGIN, np.full(dof, hi + OBJECT_BOUND)]).astype(
+                np.float32
+            ),
+            dtype=np.float32,
+        )
+        limit = self.world.velocity_limits().astype(np.float32)
+        self.observation_space = self._observation_box
+        self.action_box = gym.spaces.Box(low=-limit, high=limit, dtype=np.float32)
+        self.action_space = self.action_box
+        self._rng = np.random.default_rng(seed)
+        self._steps = 0
+
+    def _observation(self) -> NDArray[np.float32]:
+        state = np.concatenate([self.world.robot_q(), self.world.object_q()]).astype(np.float32)
+        box = self._observation_box
+        return np.clip(state, box.low, box.high)
+
+    def start_configuration(self) -> NDArray[np.float64]:
+        """Draw q_R(0) (7,): start_q plus Gaussian noise, within the joint limits."""
+        robot = self.task.robot
+        low, high = self.world.robot_limits()
+        noise = self._rng.normal(0.0, robot.start_noise, size=7) if robot.start_noise > 0 else 0.0
+        return np.clip(np.asarray(robot.start_q) + noise, low, high)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """Start an episode; `seed` re-seeds the start-noise generator."""
+        super().reset(seed=seed)
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        self.world.reset(self.start_configuration(), np.asarray(self.task.object_start))
+        self._steps = 0
+        return self._observation(), self._info()
+
+    def _info(self) -> dict[str, Any]:
+        q_object = self.world.object_q()
+        error = float(np.linalg.norm(q_object - self.world.goal))
+        return {"success": error <= self.task.success_threshold, "q_object": q_object}
+
+    def step(
+        self, action: NDArray[np.float32]
+    ) -> tuple[NDArray[np.float32], SupportsFloat, bool, bool, dict[str, Any]]:
+        """Apply a_t for one control period; returns (s_t+1, r_t, False, truncated, info)."""
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        self.world.apply_action(a)
+        self.world.step()
+        self._steps += 1
+        info = self._info()
+        reward = kinematic_reward(
+            info["q_object"], self.world.goal, a, self.task.reward.c, self.task.reward.r
+        )
+        truncated = self._steps >= self.world.horizon
+        return self._observation(), reward, False, truncated, info
+
+    def close(self) -> None:
+        self.world.close()
+        super().close()
+
+
+def register_envs() -> list[str]:
+    """Register `artic/Drawer-v0`, `artic/Microwave-v0`, `artic/TBall-v0` with gymnasium
+    (idempotent); returns the ids. `gym.make(id, seed=...)` then builds the env."""
+    for env_id, task in ENV_IDS.items():
+        if env_id not in gym.registry:
+            gym.register(
+                id=env_id,
+                entry_point="artic.sim.envs:ArticTaskEnv",
+                kwargs={"task": task},
+                max_episode_steps=None,
+            )
+    return list(ENV_IDS)
+
+
+def measure_steps_per_second(task: str | TaskConfig, n: int = 500, seed: int = 0) -> float:
+    """Control steps per second (wall clock) of random actions on `task`, resets
+    included whenever an episode ends. A benchmark helper, not used by tests."""
+    env = ArticTaskEnv(task, seed=seed)
+    try:
+        rng = np.random.default_rng(seed)
+        env.reset(seed=seed)
+        scale = env.action_box.high
+        start = time.perf_counter()
+        for _ in range(n):
+            action = (rng.uniform(-1.0, 1.0, size=7) * scale).astype(np.float32)
+            _, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                env.reset()
+        return n / (time.perf_counter() - start)
+    finally:
+        env.close()
