@@ -34,6 +34,10 @@ STAGE_MODULES: dict[str, str] = {
     "render-depth": "artic.cli.render_depth",
     "train-mdn": "artic.cli.train_mdn",
     "evaluate-mdn": "artic.cli.evaluate_mdn",
+    "plan-demos": "artic.cli.plan_demos",
+    "fit-dmp": "artic.cli.fit_dmp",
+    "policy-search": "artic.cli.policy_search",
+    "evaluate-bootstrap": "artic.cli.evaluate_bootstrap",
 }
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -41,6 +45,12 @@ _OVERRIDES = typer.Argument(None, help="Hydra overrides, e.g. category=drawer da
 _CFG = typer.Option(False, "--cfg", help="Print the resolved config and exit.")
 _FORCE = typer.Option(False, "--force", help="Recompute even if the output is up to date.")
 _EXTRA = {"allow_extra_args": False, "ignore_unknown_options": True}
+_TASK = typer.Option(None, "--task", help="Chapter 5 task: drawer, microwave, tball (= task=NAME)")
+
+
+def _with_task(overrides: list[str] | None, task: str | None) -> list[str]:
+    """`--task NAME` is shorthand for the Hydra override `task=NAME`."""
+    return [*(overrides or []), *([f"task={task}"] if task else [])]
 
 
 def load_stage(command: str) -> Any:
@@ -124,6 +134,51 @@ def train_mdn(
     run_stage_command("train-mdn", overrides, cfg, force)
 
 
+@app.command("plan-demos", context_settings=_EXTRA)
+@handle_errors
+def plan_demos(
+    overrides: list[str] | None = _OVERRIDES,
+    task: str | None = _TASK,
+    cfg: bool = _CFG,
+    force: bool = _FORCE,
+) -> None:
+    """Motion-planned demonstrations on a kinematic model (Algorithm 2).
+
+    Example: artic plan-demos --task drawer
+    """
+    run_stage_command("plan-demos", _with_task(overrides, task), cfg, force)
+
+
+@app.command("fit-dmp", context_settings=_EXTRA)
+@handle_errors
+def fit_dmp(
+    overrides: list[str] | None = _OVERRIDES,
+    task: str | None = _TASK,
+    cfg: bool = _CFG,
+    force: bool = _FORCE,
+) -> None:
+    """Dynamic movement primitives fitted to demonstrations by LWR (Eq. 2.4-2.7).
+
+    Example: artic fit-dmp demos=artifacts/demos/drawer
+    """
+    run_stage_command("fit-dmp", _with_task(overrides, task), cfg, force)
+
+
+@app.command("policy-search", context_settings=_EXTRA)
+@handle_errors
+def policy_search(
+    overrides: list[str] | None = _OVERRIDES,
+    task: str | None = _TASK,
+    cfg: bool = _CFG,
+    force: bool = _FORCE,
+) -> None:
+    """Policy search from the bootstrapped policy or from random init (section 5.2.2).
+
+    Example: artic policy-search --task drawer
+    """
+    run_stage_command("policy-search", _with_task(overrides, task), cfg, force)
+
+
 evaluate_app = typer.Typer(
     help="Evaluation reports on withheld objects (tables of the thesis).", no_args_is_help=True
 )
@@ -140,6 +195,21 @@ def evaluate_mdn(
     Example: artic evaluate mdn category=microwave
     """
     run_stage_command("evaluate-mdn", overrides, cfg, force)
+
+
+@evaluate_app.command("bootstrap", context_settings=_EXTRA)
+@handle_errors
+def evaluate_bootstrap(
+    overrides: list[str] | None = _OVERRIDES,
+    task: str | None = _TASK,
+    cfg: bool = _CFG,
+    force: bool = _FORCE,
+) -> None:
+    """Figure 5.2: bootstrapped vs random initialisation over seeds, and success rates.
+
+    Example: artic evaluate bootstrap --task drawer
+    """
+    run_stage_command("evaluate-bootstrap", _with_task(overrides, task), cfg, force)
 
 
 @app.command("predict")
