@@ -1,0 +1,1 @@
+"""Policy classes: dynamic movement primitives and Gaussian MLP policies (Chapter 5)."""
