@@ -61,3 +61,35 @@ def test_dry_run_lists_stages(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, out, _ = run_cli("pipeline", "smoke", "--dry-run")
     assert code == 0 and "depth-drawer" in out and not (tmp_path / "artifacts").exists()
+
+
+VARS_PIPELINE = """
+vars: {category: microwave}
+stages:
+  objects:
+    cmd: generate-dataset
+    overrides: [debug=tiny, 'category=${category}', 'out=out/${category}']
+    outs: ['out/${category}']
+"""
+
+
+def test_pipeline_variables_default_and_override(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    path = _write(tmp_path, VARS_PIPELINE)
+    code, out, err = run_cli("pipeline", path, "--dry-run")
+    assert code == 0, err
+    assert "out/microwave" in out
+    code, out, err = run_cli("pipeline", path, "category=drawer")
+    assert code == 0, err
+    assert read_manifest(tmp_path / "out/drawer").config["category"]["name"] == "drawer"
+    assert not (tmp_path / "out/microwave").exists()
+
+
+@pytest.mark.parametrize(
+    ("assignment", "message"),
+    [("color=red", "variable 'color' is not declared"), ("category", "expected NAME=VALUE")],
+)
+def test_bad_pipeline_variable_exits_2(tmp_path, monkeypatch, assignment, message):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli("pipeline", _write(tmp_path, VARS_PIPELINE), assignment)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1

@@ -4,6 +4,10 @@ A pipeline file maps stage names to `{cmd, overrides, deps, outs}`. Each stage r
 in this process through the same runner as its subcommand, so an up-to-date stage is
 skipped by its own manifest check. `deps` must be produced by an earlier stage or
 exist already; `outs` must name the folder the stage writes.
+
+A pipeline may declare `vars` with defaults (`vars: {task: drawer}`); `${task}` in any
+override, dep or out is replaced by the value, which `artic pipeline NAME task=tball`
+sets. Other `${...}` are left to Hydra's interpolation.
 """
 
 from __future__ import annotations
@@ -34,7 +38,34 @@ class Pipeline(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     description: str = ""
+    vars: dict[str, str] = Field(default_factory=dict, description="variables and defaults")
     stages: dict[str, PipelineStage]
+
+    def substituted(self, values: dict[str, str]) -> Pipeline:
+        """The pipeline with `${name}` replaced by `values` (else the declared default)."""
+        unknown = sorted(set(values) - set(self.vars))
+        if unknown:
+            known = ", ".join(sorted(self.vars)) or "none"
+            raise InputError(
+                f"pipeline variable '{unknown[0]}' is not declared (declared: {known})"
+            )
+        final = {**self.vars, **values}
+
+        def sub(text: str) -> str:
+            for name, value in final.items():
+                text = text.replace("${" + name + "}", value)
+            return text
+
+        stages = {
+            name: PipelineStage(
+                cmd=st.cmd,
+                overrides=[sub(o) for o in st.overrides],
+                deps=[sub(d) for d in st.deps],
+                outs=[sub(o) for o in st.outs],
+            )
+            for name, st in self.stages.items()
+        }
+        return Pipeline(description=self.description, vars=final, stages=stages)
 
 
 def pipeline_path(name: str) -> Path:
@@ -49,10 +80,21 @@ def pipeline_path(name: str) -> Path:
     return path
 
 
-def load_pipeline(path: Path) -> Pipeline:
+def parse_vars(assignments: list[str]) -> dict[str, str]:
+    """`["task=drawer"]` -> `{"task": "drawer"}`; a malformed item is an InputError."""
+    values: dict[str, str] = {}
+    for item in assignments:
+        name, sep, value = item.partition("=")
+        if not sep or not name.isidentifier() or not value:
+            raise InputError(f"pipeline variable '{item}': expected NAME=VALUE")
+        values[name] = value
+    return values
+
+
+def load_pipeline(path: Path, values: dict[str, str] | None = None) -> Pipeline:
     try:
         data = yaml.safe_load(path.read_text())
-        pipeline = Pipeline.model_validate(data)
+        pipeline = Pipeline.model_validate(data).substituted(values or {})
     except yaml.YAMLError as err:
         raise InputError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     except ValidationError as err:
@@ -86,12 +128,17 @@ def _norm(p: str) -> str:
     return Path(p).as_posix().rstrip("/")
 
 
-def run_pipeline(name: str, force: bool = False, dry_run: bool = False) -> None:
+def run_pipeline(
+    name: str,
+    force: bool = False,
+    dry_run: bool = False,
+    values: dict[str, str] | None = None,
+) -> None:
     from artic.cli.main import load_stage
     from artic.cli.stage_runner import resolved_config, run_stage
 
     path = pipeline_path(name)
-    pipeline = load_pipeline(path)
+    pipeline = load_pipeline(path, values)
     console = Console()
     verbose = logging.getLogger().isEnabledFor(logging.INFO)  # not under --quiet
     table = Table(title=f"pipeline {name} ({path})", title_justify="left")
