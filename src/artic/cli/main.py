@@ -251,16 +251,36 @@ def predict(
 @handle_errors
 def pipeline(
     name: str = typer.Argument(..., help="stages/NAME.yaml, or a path to a pipeline file"),
+    variables: list[str] | None = typer.Argument(
+        None, help="pipeline variables NAME=VALUE (declared under vars: in the file)"
+    ),
     force: bool = typer.Option(False, "--force", help="Recompute every stage."),
     dry_run: bool = typer.Option(False, "--dry-run", help="List the stages and exit."),
 ) -> None:
     """Run a chain of stages from stages/NAME.yaml, skipping those that are up to date.
 
-    Example: artic pipeline smoke
+    Example: artic pipeline smoke;  artic pipeline bootstrap task=tball
+    """
+    from artic.cli.pipeline import parse_vars, run_pipeline
+
+    run_pipeline(name, force=force, dry_run=dry_run, values=parse_vars(list(variables or [])))
+
+
+@app.command("bootstrap")
+@handle_errors
+def bootstrap(
+    task: str = typer.Option("drawer", "--task", help="drawer, microwave or tball"),
+    force: bool = typer.Option(False, "--force", help="Recompute every stage."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="List the stages and exit."),
+) -> None:
+    """Algorithm 1 for one task: plan demos, fit the policy, policy search from it and from
+    random init, evaluate (the pipeline stages/bootstrap.yaml).
+
+    Example: artic bootstrap --task drawer
     """
     from artic.cli.pipeline import run_pipeline
 
-    run_pipeline(name, force=force, dry_run=dry_run)
+    run_pipeline("bootstrap", force=force, dry_run=dry_run, values={"task": task})
 
 
 def _version(value: bool) -> None:
