@@ -1,0 +1,1 @@
+"""Chapter 4: part segmentation, part graphs, GNN labelling, kinematic trees and their metrics."""

@@ -1,0 +1,346 @@
+"""Part segmentation network of section 4.3 (after PartNet's instance segmenter, Mo et al. 2019).
+
+A PointNet++ backbone gives per-point features. Two per-point branches follow:
+- the instance branch predicts N = 24 part masks plus one "other" mask as a softmax over
+  N + 1 slots per point (PartNet's choice: every point belongs to exactly one slot, so
+  masks are disjoint; "other" takes points of no part, part_id -1 in the ground truth),
+  with one confidence per mask regressed from the global feature;
+- the motion branch replaces PartNet's semantic branch with the thesis' four motion types
+  (static, rotating, translating, both).
+
+Loss (`segmentation_loss`): Hungarian matching of predicted to ground-truth masks on the
+relaxed (soft) IoU, 1 - IoU of matched pairs, confidence regressed to the matched IoU (0 for
+unmatched masks), 1 - IoU of the "other" mask where the cloud has unlabelled points, and
+cross-entropy on motion types. Trained with Adam, learning rate 1e-4 (section 4.3).
+
+Inference (`segment`): one cloud (N, 3) -> one part label per input point. The network
+sees at most `n_points` points chosen by farthest-point sampling; labels go back to every
+input point from its nearest sampled point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+from scipy.spatial import cKDTree
+from torch import Tensor, nn
+
+from artic.errors import InputError
+from artic.hierarchy.pointnet2 import PointNet2, PointNet2Config, SharedMLP, farthest_point_indices
+
+MOTION_TYPES = ("static", "rotating", "translating", "both")
+N_MASKS = 24
+
+
+@dataclass(frozen=True)
+class SegmentationConfig:
+    """Architecture of the section 4.3 segmenter."""
+
+    n_masks: int = N_MASKS  # N, instance masks (besides "other")
+    backbone: PointNet2Config = field(default_factory=PointNet2Config)
+    head_width: int = 256  # hidden width of the instance branch (motion branch: half)
+    confidence_width: int = 256  # hidden width of the confidence MLP
+    normalize: bool = True  # centre each cloud on its mean and scale it into the unit sphere
+
+    def scaled(self, factor: float) -> SegmentationConfig:
+        """Every width times `factor` (for tests and small machines)."""
+        return SegmentationConfig(
+            n_masks=self.n_masks,
+            backbone=self.backbone.scaled(factor),
+            head_width=max(4, round(self.head_width * factor)),
+            confidence_width=max(4, round(self.confidence_width * factor)),
+            normalize=self.normalize,
+        )
+
+
+class SegmentationOutput(NamedTuple):
+    mask_logits: Tensor  # (B, N, M + 1): M part masks, then "other"; softmax over the last axis
+    confidence: Tensor  # (B, M) in (0, 1), predicted IoU of each mask with its part
+    motion_logits: Tensor  # (B, N, 4) over MOTION_TYPES
+
+
+def normalize_points(xyz: Tensor) -> Tensor:
+    """Centre each cloud on its mean and scale its farthest point to radius 1.
+
+    xyz: (B, N, 3) -> (B, N, 3), unitless.
+    """
+    centred = xyz - xyz.mean(dim=1, keepdim=True)
+    radius = centred.norm(dim=-1).amax(dim=1).clamp_min(1e-9)
+    return centred / radius[:, None, None]
+
+
+class PartSegmentationNet(nn.Module):
+    """points (B, N, 3), metres -> SegmentationOutput (section 4.3)."""
+
+    def __init__(self, config: SegmentationConfig | None = None) -> None:
+        super().__init__()
+        config = config or SegmentationConfig()
+        self.config = config
+        self.backbone = PointNet2(config.backbone)
+        c, g, h = self.backbone.out_channels, self.backbone.global_channels, config.head_width
+        norm = config.backbone.norm
+        self.instance = nn.Sequential(SharedMLP(c, (h, h), norm), nn.Linear(h, config.n_masks + 1))
+        self.motion = nn.Sequential(
+            SharedMLP(c, (h // 2,), norm), nn.Linear(h // 2, len(MOTION_TYPES))
+        )
+        # no BatchNorm here: the global feature has one row per cloud (batches of one train)
+        w = config.confidence_width
+        self.confidence = nn.Sequential(
+            nn.Linear(g, w), nn.ReLU(), nn.Linear(w, w), nn.ReLU(), nn.Linear(w, config.n_masks)
+        )
+
+    def forward(self, points: Tensor) -> SegmentationOutput:
+        xyz = normalize_points(points) if self.config.normalize else points
+        features = self.backbone(xyz)
+        return SegmentationOutput(
+            self.instance(features.point_features),
+            torch.sigmoid(self.confidence(features.global_features)),
+            self.motion(features.point_features),
+        )
+
+
+def relaxed_iou(mask_prob: Tensor, part_mask: Tensor) -> Tensor:
+    """Soft IoU of every predicted mask with every ground-truth part (PartNet's relaxed IoU).
+
+    mask_prob: (N, M) in [0, 1]; part_mask: (N, P) in {0, 1} -> (M, P):
+    sum(p g) / (sum(p) + sum(g) - sum(p g)).
+    """
+    inter = mask_prob.transpose(0, 1) @ part_mask
+    union = mask_prob.sum(0)[:, None] + part_mask.sum(0)[None, :] - inter
+    return inter / union.clamp_min(1e-8)
+
+
+class SegmentationLosses(NamedTuple):
+    total: Tensor  # weighted sum, differentiable
+    mask: Tensor  # mean over parts of 1 - IoU of the matched mask
+    other: Tensor  # 1 - IoU of the "other" mask with the unlabelled points (0 if none)
+    confidence: Tensor  # squared error to the matched IoU (0 for unmatched masks), mean over
+    # matched plus mean over unmatched masks (PartNet's balancing)
+    motion: Tensor  # cross-entropy of the motion types
+    matched_iou: Tensor  # mean soft IoU of matched pairs (no gradient)
+
+
+@dataclass(frozen=True)
+class LossWeights:
+    mask: float = 1.0
+    other: float = 1.0
+    confidence: float = 1.0
+    motion: float = 1.0
+
+
+def segmentation_loss(
+    output: SegmentationOutput,
+    part_id: Tensor,
+    motion_type: Tensor,
+    weights: LossWeights | None = None,
+) -> SegmentationLosses:
+    """Hungarian-matched instance loss + confidence + motion-type loss, mean over the batch.
+
+    part_id: (B, N) int64, any non-negative ids (at most M distinct per cloud), -1 for
+    points of no part; motion_type: (B, N) int64 in 0..3, -1 to ignore.
+    """
+    weights = weights or LossWeights()
+    m = output.confidence.shape[1]
+    probs = output.mask_logits.softmax(dim=-1)
+    zero = probs.new_zeros(())
+    mask_l, other_l, conf_l, ious = [], [], [], []
+    for b in range(probs.shape[0]):
+        labels = part_id[b]
+        valid = labels >= 0
+        ids, inverse = torch.unique(labels[valid], return_inverse=True)
+        if len(ids) > m:
+            raise InputError(f"part_id: at most {m} parts per cloud, got {len(ids)}")
+        gt = probs.new_zeros(labels.shape[0], len(ids))
+        gt[valid] = F.one_hot(inverse, len(ids)).to(probs.dtype)
+        iou = relaxed_iou(probs[b, :, :m], gt)  # (M, P)
+        rows, cols = linear_sum_assignment(iou.detach().cpu().numpy(), maximize=True)
+        rows_t = torch.as_tensor(rows, device=iou.device)
+        matched = iou[rows_t, torch.as_tensor(cols, device=iou.device)]
+        mask_l.append((1.0 - matched).mean() if len(ids) else zero)
+        ious.append(matched.detach().mean() if len(ids) else zero + 1.0)
+        target = torch.zeros_like(output.confidence[b])
+        target[rows_t] = matched.detach()
+        is_matched = torch.zeros(m, dtype=torch.bool, device=iou.device)
+        is_matched[rows_t] = True
+        err = (output.confidence[b] - target).square()
+        conf = err[is_matched].mean() if is_matched.any() else zero
+        conf_l.append(conf + (err[~is_matched].mean() if (~is_matched).any() else zero))
+        if (~valid).any():
+            other = relaxed_iou(probs[b, :, m:], (~valid).to(probs.dtype)[:, None])[0, 0]
+            other_l.append(1.0 - other)
+        else:
+            other_l.append(zero)
+    motion = (
+        F.cross_entropy(
+            output.motion_logits.reshape(-1, len(MOTION_TYPES)),
+            motion_type.reshape(-1),
+            ignore_index=-1,
+        )
+        if (motion_type >= 0).any()
+        else zero
+    )
+    mask_loss, other_loss = torch.stack(mask_l).mean(), torch.stack(other_l).mean()
+    conf_loss = torch.stack(conf_l).mean()
+    total = (
+        weights.mask * mask_loss
+        + weights.other * other_loss
+        + weights.confidence * conf_loss
+        + weights.motion * motion
+    )
+    return SegmentationLosses(
+        total, mask_loss, other_loss, conf_loss, motion, torch.stack(ious).mean()
+    )
+
+
+class SegmentationBatch(NamedTuple):
+    points: Tensor  # (B, N, 3) float32, metres
+    part_id: Tensor  # (B, N) int64, -1 for points of no part
+    motion_type: Tensor  # (B, N) int64 in 0..3, -1 to ignore
+
+
+class TrainRecord(NamedTuple):
+    """Losses of one training step, as floats."""
+
+    total: float
+    mask: float
+    other: float
+    confidence: float
+    motion: float
+    matched_iou: float
+
+
+def make_optimizer(model: nn.Module, lr: float = 1e-4) -> torch.optim.Adam:
+    """Adam with the thesis' learning rate 1e-4 (section 4.3)."""
+    return torch.optim.Adam(model.parameters(), lr=lr)
+
+
+def train_step(
+    model: PartSegmentationNet,
+    optimizer: torch.optim.Optimizer,
+    batch: SegmentationBatch,
+    weights: LossWeights | None = None,
+) -> TrainRecord:
+    """One optimisation step on `batch` (moved to the model's device) -> its losses."""
+    device = next(model.parameters()).device
+    model.train()
+    optimizer.zero_grad(set_to_none=True)
+    output = model(batch.points.to(device))
+    losses = segmentation_loss(
+        output, batch.part_id.to(device), batch.motion_type.to(device), weights
+    )
+    losses.total.backward()
+    optimizer.step()
+    return TrainRecord(*(float(v.detach()) for v in losses))
+
+
+@dataclass(frozen=True)
+class InferenceConfig:
+    """How `segment` turns the network's masks into parts."""
+
+    n_points: int = 2048  # network input size; larger clouds are downsampled by FPS
+    min_points: int = 8  # a mask with fewer (sampled) points is merged into its neighbours
+    min_fraction: float = 0.005  # ... or with fewer than this fraction of the sampled points
+    min_confidence: float = 0.1  # a mask with a lower predicted IoU is merged likewise
+
+
+class SegmentationResult(NamedTuple):
+    part_id: NDArray[np.int64]  # (N,) in 0..P-1, parts ordered by decreasing size
+    motion_type: NDArray[np.int64]  # (N,) index into MOTION_TYPES
+    motion_prob: NDArray[np.float32]  # (N, 4) softmax over MOTION_TYPES
+    part_confidence: NDArray[np.float32]  # (P,) predicted IoU of each part's mask
+
+
+def segment(
+    model: PartSegmentationNet,
+    points: NDArray[np.floating],
+    config: InferenceConfig | None = None,
+) -> SegmentationResult:
+    """Segment one cloud into parts with motion types: points (N, 3), metres.
+
+    1. Downsample to `n_points` by farthest-point sampling (deterministic, from point 0).
+    2. Run the network; every sampled point takes its most probable slot.
+    3. Masks that are "other", smaller than max(min_points, min_fraction * S) or less
+       confident than `min_confidence` are dropped; their points move to their most
+       probable kept mask (the largest mask is always kept).
+    4. Every input point takes the labels of its nearest sampled point (cKDTree).
+
+    Train on clouds prepared the same way (`farthest_point_indices(scan, n_points)`).
+    Step 4 cannot separate parts closer than the sample spacing: on the three-box test
+    object (gaps of 2.5-3 cm, 2.15 m^2 of surface) nearest-sample upsampling of the TRUE
+    labels of 512 FPS samples reaches part IoU 0.74-0.87, of 2,048 samples 1.0.
+    """
+    config = config or InferenceConfig()
+    pts = np.asarray(points)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0:
+        raise InputError(f"points: expected a non-empty (N, 3) array, got shape {pts.shape}")
+    if not np.isfinite(pts).all():
+        raise InputError("points: NaN or infinite coordinates")
+    pts = pts.astype(np.float32)
+    sample = (
+        farthest_point_indices(pts, config.n_points)
+        if len(pts) > config.n_points
+        else np.arange(len(pts))
+    )
+    device = next(model.parameters()).device
+    model.eval()
+    with torch.no_grad():
+        out = model(torch.from_numpy(pts[sample]).to(device)[None])
+    mask_prob = out.mask_logits[0].softmax(-1).cpu().numpy()  # (S, M + 1)
+    confidence = out.confidence[0].cpu().numpy()
+    motion_prob = out.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
+    merged = merge_masks(mask_prob, confidence, config)
+    nearest = nearest_sample(pts[sample], pts)
+    used, part_id = np.unique(merged.label[nearest], return_inverse=True)  # drop emptied parts
+    return SegmentationResult(
+        part_id.astype(np.int64),
+        motion_prob.argmax(-1)[nearest].astype(np.int64),
+        motion_prob[nearest],
+        confidence[merged.mask[used]].astype(np.float32),
+    )
+
+
+class MergedMasks(NamedTuple):
+    label: NDArray[np.int64]  # (S,) part of each sampled point, 0..P-1
+    mask: NDArray[np.int64]  # (P,) the network mask each part comes from
+
+
+def merge_masks(
+    mask_prob: NDArray[np.floating],
+    confidence: NDArray[np.floating],
+    config: InferenceConfig | None = None,
+) -> MergedMasks:
+    """Hard part labels from soft masks, small or unconfident masks merged away.
+
+    mask_prob: (S, M + 1) softmax over M masks and "other"; confidence: (M,).
+    Parts are the kept masks ordered by decreasing size (ties: mask order).
+    """
+    config = config or InferenceConfig()
+    s, m = mask_prob.shape[0], mask_prob.shape[1] - 1
+    count = np.bincount(mask_prob.argmax(-1), minlength=m + 1)[:m]
+    keep = (count >= max(config.min_points, config.min_fraction * s)) & (
+        confidence >= config.min_confidence
+    )
+    if not keep.any():
+        keep[count.argmax()] = True
+    candidates = np.flatnonzero(keep)
+    best = candidates[mask_prob[:, candidates].argmax(-1)]  # (S,) mask index
+    size = np.bincount(best, minlength=m)
+    kept = candidates[np.argsort(-size[candidates], kind="stable")]
+    kept = kept[size[kept] > 0]
+    rank = np.full(m, -1, dtype=np.int64)
+    rank[kept] = np.arange(len(kept))
+    return MergedMasks(rank[best], kept.astype(np.int64))
+
+
+def nearest_sample(
+    sampled: NDArray[np.floating], points: NDArray[np.floating]
+) -> NDArray[np.int64]:
+    """Index of the nearest sampled point for every point: sampled (S, 3), points (N, 3)
+    -> (N,) in 0..S-1; labels of the samples go to the points by `labels[index]`."""
+    return np.asarray(cKDTree(sampled).query(points, k=1)[1], dtype=np.int64)
