@@ -13,7 +13,7 @@ from artic.artifacts.manifest import read_manifest
 from conftest import run_cli
 
 DEMO_ARRAYS = {"t", "q_robot", "qd_robot", "q_object", "ee_pose"}
-RECORD_KEYS = {"index", "file", "status", "reason", "planning_time_s", "steps"}
+RECORD_KEYS = {"index", "file", "status", "reason", "steps", "q_robot_start", "q_object_start"}
 
 
 @pytest.fixture(scope="module")
@@ -36,10 +36,15 @@ def test_writes_the_demos_format(tiny_demos: Path) -> None:
     with TaskWorld.create(get_task("drawer")) as world:
         low, high = world.robot_limits()
         vmax = world.velocity_limits()
+    assert info["horizon"] == 80 and info["goal"] == [0.25] and info["dof_object"] == 1
+    timings = json.loads((tiny_demos / "timings.json").read_text())
+    assert [d["index"] for d in timings["demos"]] == [0, 1]
+    assert all(d["planning_time_s"] > 0 for d in timings["demos"])
+    assert timings["median_planning_time_s"] > 0
     for record in info["demos"]:
-        assert set(record) >= RECORD_KEYS
+        assert set(record) >= RECORD_KEYS and "planning_time_s" not in record
         assert record["status"] == "ok" and record["reason"] == ""
-        assert record["planning_time_s"] > 0
+        assert 0 <= record["grasp_step"] < record["steps"] and record["reached_fraction"] == 1.0
         data = read_npz(tiny_demos / record["file"])
         assert set(data) == DEMO_ARRAYS
         steps = record["steps"]
@@ -68,7 +73,39 @@ def test_manifest_records_the_model_source(tiny_demos: Path) -> None:
     assert manifest.stage == "plan-demos" and manifest.status == "complete"
     assert manifest.config["model"]["source"] == "true"
     assert manifest.stats["kinematic model"] == "true" and manifest.stats["demos planned"] == 2
-    assert set(manifest.outputs) == {"demo_000.npz", "demo_001.npz", "demos.json"}
+    assert set(manifest.outputs) == {"demo_000.npz", "demo_001.npz", "demos.json", "timings.json"}
+
+
+def test_same_seed_gives_the_same_bytes(tiny_demos: Path, tmp_path: Path) -> None:
+    # everything but timings.json (wall-clock planning times) is deterministic
+    out = tmp_path / "again"
+    code, _, err = run_cli("plan-demos", "debug=tiny", "task=drawer", f"out={out}")
+    assert code == 0, err
+    for name in ("demos.json", "demo_000.npz", "demo_001.npz"):
+        assert (out / name).read_bytes() == (tiny_demos / name).read_bytes(), name
+    assert (out / "timings.json").exists()
+
+
+@pytest.mark.parametrize("task", ["tball", "microwave"])
+def test_contact_tasks_plan_clean_demos_within_the_horizon(task: str, tmp_path: Path) -> None:
+    from artic.sim.tasks import get_task
+
+    out = tmp_path / task
+    code, _, err = run_cli(
+        "plan-demos", "debug=tiny", f"task={task}", f"out={out}", "demos.count=1"
+    )
+    assert code == 0, err
+    record = json.loads((out / "demos.json").read_text())["demos"][0]
+    cfg = get_task(task)
+    assert record["status"] == "ok" and record["steps"] <= cfg.horizon
+    executed = record["executed"]
+    # the arm follows its plan (it does not jam on the tee or the microwave)
+    assert executed["max_tracking_error_rad"] < 0.05
+    moved = executed["q_object"][0] - cfg.object_start[0]
+    if task == "tball":
+        assert moved > 0.1  # the ball was hit along +y
+    else:
+        assert moved < -0.5  # the door was pushed most of the way towards shut
 
 
 def test_shards_merge_into_the_same_demos(tiny_demos: Path, tmp_path: Path) -> None:
@@ -79,7 +116,7 @@ def test_shards_merge_into_the_same_demos(tiny_demos: Path, tmp_path: Path) -> N
     assert not (out / "demos.json").exists()  # one of two shards: not published yet
     code, _, err = run_cli(*common, "shard.index=0")
     assert code == 0, err
-    for name in ("demo_000.npz", "demo_001.npz"):
+    for name in ("demo_000.npz", "demo_001.npz", "demos.json"):
         assert (out / name).read_bytes() == (tiny_demos / name).read_bytes()
 
 

@@ -162,6 +162,22 @@ def test_push_grasp_stands_behind_the_ball(direction: float) -> None:
     np.testing.assert_allclose(ee[:3, 3], [0.6, -direction * 0.03, 0.3], atol=1e-12)
 
 
+def test_pitched_push_strikes_from_above_with_the_lower_rim() -> None:
+    model = ball_model()  # a 0.04 m cube centred at (0.6, 0, 0.3)
+    pitch, lift, standoff = 0.5, 0.03, 0.01
+    grasp = estimate_grasp(model, 1, np.zeros(1), "push", standoff, 1.0, pitch, lift)
+    ee = model.link_poses(np.zeros(1))[1] @ grasp.offset
+    d = np.array([0.0, np.cos(pitch), -np.sin(pitch)])  # +y tilted down
+    up = np.array([0.0, np.sin(pitch), np.cos(pitch)])  # in the end face, towards world up
+    np.testing.assert_allclose(ee[:3, 2], d, atol=1e-12)
+    np.testing.assert_allclose(ee[:3, 0], up, atol=1e-12)
+    # the contact is the cube's support point along -d: a back corner row, 0.02 (cos + sin)
+    reach = 0.02 * (np.cos(pitch) + np.sin(pitch))
+    centre = np.array([0.6, 0.0, 0.3])
+    np.testing.assert_allclose(ee[:3, 3], centre - d * (reach + standoff) + up * lift, atol=1e-12)
+    np.testing.assert_allclose(grasp.approach, d, atol=1e-12)
+
+
 def test_pregrasp_and_pose_interpolation() -> None:
     a = make_transform(Rotation.from_rotvec([0, 0, 0.5]).as_matrix(), np.array([1.0, 0.0, 0.0]))
     back = pregrasp_pose(a, 0.1)

@@ -71,6 +71,18 @@ class GraspSettings(Strict):
         "it inside, so that the hand's physical end touches (artic's iiwa: the flange is "
         "0.055 m behind the tool point)",
     )
+    push_pitch_rad: float = Field(
+        0.5,
+        ge=0,
+        lt=1.5,
+        description="push: tilt of the tool's approach axis below the push direction, rad "
+        "(the arm comes from above-behind, clear of what the pushed part rests on)",
+    )
+    push_lift_m: float = Field(
+        0.03,
+        description="push: tool point this far above the contact point in the tool's end "
+        "face (along the tool x axis), m: strike with the lower rim of the hand",
+    )
     pregrasp_m: float = Field(0.08, ge=0, description="pre-grasp distance back from the grasp, m")
     ee_step_m: float = Field(0.01, gt=0, description="spacing of the straight approach, m")
     max_joint_jump_rad: float = Field(
@@ -273,7 +285,8 @@ def _plan(
     kind = grasp_kind(model, problem.link, grasp_cfg.kind)
     direction = float(np.sign(np.sum(goal - q_o0)) or 1.0)
     standoff = grasp_cfg.standoff_m if kind == "handle" else grasp_cfg.push_standoff_m
-    grasp = estimate_grasp(model, problem.link, q_o0, kind, standoff, direction)
+    push = (grasp_cfg.push_pitch_rad, grasp_cfg.push_lift_m) if kind == "push" else (0.0, 0.0)
+    grasp = estimate_grasp(model, problem.link, q_o0, kind, standoff, direction, *push)
     if noise is not None and noise.grasp_m > 0:
         offset = grasp.offset.copy()
         offset[:3, 3] += rng.normal(0.0, noise.grasp_m, 3)

@@ -14,7 +14,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from artic.geometry.transforms import invert, make_transform
+from artic.geometry.transforms import axis_angle, invert, make_transform
 from artic.objects.model import ArticulatedObject
 
 GraspKind = Literal["handle", "push"]
@@ -75,6 +75,8 @@ def estimate_grasp(
     kind: GraspKind = "handle",
     standoff: float = 0.0,
     direction: float = 1.0,
+    pitch: float = 0.0,
+    lift: float = 0.0,
 ) -> Grasp:
     """EstimateGrasp (Algorithm 2, line 3) from the pose and box of `link`'s mesh.
 
@@ -83,10 +85,15 @@ def estimate_grasp(
     along which the mesh's box centre lies off the link origin; the grasp point is the
     middle of the bar's outer face, the tool approaches along -n from `standoff` metres
     in front of it, with its x axis along the bar (the box's longest side).
-    "push": the tool stands `standoff` metres behind the link's box, on the side opposite
-    to the direction the link moves as q grows (times the sign of `direction`, i.e. the
-    sign of q_O* - q_O), facing that direction, x axis as close to world up as possible
-    (a hitting pose behind a ball). configuration: (dof,) the object's configuration.
+    "push" (a hitting pose behind a ball): d is the direction the link moves as q grows
+    (times the sign of `direction`, i.e. the sign of q_O* - q_O). The tool's +z axis is
+    d tilted `pitch` radians down towards world -z (about the horizontal axis d x up; 0:
+    along d), its x axis as close to world up as possible. The contact point is where a
+    plane with normal +z first touches the mesh from behind (the mesh's support point
+    along -z); the tool point stands `standoff` metres behind it along -z and `lift`
+    metres above it along the tool's x axis (the hand strikes with the lower part of its
+    end face, so the arm clears what the link rests on). configuration: (dof,) the
+    object's configuration.
     """
     q = np.asarray(configuration, dtype=np.float64)
     pose = model.link_poses(q)[link]
@@ -107,11 +114,17 @@ def estimate_grasp(
         approach = -n
     elif kind == "push":
         d_world = np.sign(direction or 1.0) * motion_direction(model, link, q)
+        up_world = np.array([0.0, 0.0, 1.0])
+        if pitch != 0.0:
+            side = np.cross(d_world, up_world)
+            if np.linalg.norm(side) < 1e-9:
+                raise ValueError(f"link {link}: cannot pitch a push along the vertical")
+            d_world = axis_angle(side / np.linalg.norm(side), -pitch) @ d_world
         d = pose[:3, :3].T @ d_world  # in the link frame
-        half = 0.5 * float(np.abs(extent).dot(np.abs(d)))
-        point = centre - d * (half + standoff)
-        up = pose[:3, :3].T @ np.array([0.0, 0.0, 1.0])
-        offset = make_transform(_frame(d, up), point)
+        rotation = _frame(d, pose[:3, :3].T @ up_world)
+        half = float(np.max((centre - v) @ d))  # how far the mesh reaches back along -d
+        point = centre - d * (half + standoff) + rotation[:, 0] * lift
+        offset = make_transform(rotation, point)
         approach = d
     else:
         raise ValueError(f"grasp kind must be 'handle' or 'push', got {kind!r}")

@@ -262,12 +262,14 @@ def microwave_task() -> TaskConfig:
     1.25 m ahead and 0.5 m to the left of the robot. Open (1.4 rad) its handle is
     0.67 m from the robot's axis and within reach; closed it is 1.16 m away, beyond
     the iiwa's reach, so the robot must push the door fast enough for it to swing shut.
-    No grasp: the robot acts through contact.
+    No grasp: the robot acts through contact. Horizon 80 steps (4 s): a planned demo
+    follows the door to the edge of the robot's reach (about 1 rad of the door's swing,
+    with large wrist motions at the end), which takes 64 steps at the joint speed limits.
     """
     parts = PartsConfig(joint_damping=0.3, joint_friction=0.05)
     return TaskConfig(
         name="microwave",
-        horizon=60,
+        horizon=80,
         goal=[0.0],
         object_start=[1.4],
         success_threshold=0.1,
@@ -289,13 +291,21 @@ def microwave_task() -> TaskConfig:
 @register_task("tball")
 def tball_task() -> TaskConfig:
     """Hit a ball off a tee (section 5.3.1): the object state is the ball's y
-    displacement from its start, the goal 1 m along +y. No grasp: the robot strikes."""
+    displacement from its start. No grasp: the robot strikes.
+
+    A 7 cm ball (60 g) rests on a 0.3 m tee 0.6 m ahead of the robot; it rolls to a stop
+    on the ground (rolling friction). Goal: 0.75 m along +y, success within 0.2 m. The
+    thesis gives no distance; this one sits between what the planned demo achieves (a
+    push from rest, 0.23-0.34 m) and what the iiwa's fastest swing along the demo's path
+    achieves (about 1 m, joint speed limits saturated): success needs policy search to
+    learn a faster swing, and stays within the robot's reach (docs/bootstrap.md).
+    """
     return TaskConfig(
         name="tball",
         horizon=60,
-        goal=[1.0],
+        goal=[0.75],
         object_start=[0.0],
-        success_threshold=0.25,
+        success_threshold=0.2,
         robot=RobotConfig(start_q=[-0.89, 1.23, 0.66, -0.9, 0.77, 1.89, 0.09]),
         grasp=GraspConfig(enabled=False),
         scene=TBallScene(),
