@@ -2,6 +2,12 @@
 
 This is what `build(spec)` returns and what the URDF writer and the depth renderers
 consume. Everything is pure numpy; nothing here reads or writes files.
+
+An object is a kinematic tree of any depth (thesis section 4.4.1): a link's parent is any
+earlier link. `links[0]` is the root; joint i's child is `links[i + 1]` for the objects
+`artic.objects` builds (depth-first order, which is PyBullet's joint numbering), so a
+link's index is its part id. Joints may be revolute, continuous (an unlimited revolute;
+`limits` is then only the range poses are drawn from), prismatic or fixed.
 """
 
 from __future__ import annotations
@@ -14,15 +20,23 @@ from numpy.typing import NDArray
 
 from artic.geometry.transforms import axis_angle, make_transform
 
-JointType = Literal["revolute", "prismatic", "fixed"]
+JointType = Literal["revolute", "prismatic", "fixed", "continuous"]
+
+ROTATING_JOINTS = ("revolute", "continuous")
+"""Joint types whose value is an angle (radians)."""
 
 
 class TriangleMesh(NamedTuple):
     """A triangle mesh in its link's frame.
 
     vertices: (V, 3) float64, metres. triangles: (F, 3) int32, counter-clockwise seen
-    from outside (outward normals).
+    from outside (outward normals). V = F = 0 for a virtual link (no geometry).
     """
+
+    @property
+    def is_empty(self) -> bool:
+        """True for a mesh without triangles (a virtual link)."""
+        return int(self.triangles.shape[0]) == 0
 
     vertices: NDArray[np.float64]
     triangles: NDArray[np.int32]
@@ -40,13 +54,16 @@ class Inertial:
 
 @dataclass(frozen=True)
 class Link:
-    """A rigid part. `role` is its part in the kinematic graph (section 2.3):
-    "body", "door", "drawer" or "handle"."""
+    """A rigid part. `role` is its part in the kinematic graph (section 2.3): "body",
+    "door", "drawer", "handle" (Appendix A), or a Chapter 4 role such as "base", "arm",
+    "head", "column", "seat", "back", "armrest", "caster", "wheel" (docs/objects.md).
+    `semantic` is a free-text label (PartNet-Mobility's semantics.txt), "" when unset."""
 
     name: str
     role: str
     mesh: TriangleMesh
     inertial: Inertial
+    semantic: str = ""
 
 
 @dataclass(frozen=True)
@@ -55,8 +72,10 @@ class Joint:
 
     origin: (4, 4) pose of the joint frame (= the child link frame at q = 0) in the
     parent link frame. axis: (3,) unit vector in the joint frame. limits: (lower, upper)
-    in radians (revolute) or metres (prismatic); (0, 0) for fixed joints. effort (N m or
-    N) and velocity (rad/s or m/s) limits; damping and friction for the simulator.
+    in radians (revolute, continuous) or metres (prismatic); (0, 0) for fixed joints;
+    for a continuous joint only the range configurations are drawn from (not in URDF).
+    effort (N m or N) and velocity (rad/s or m/s) limits; damping and friction for the
+    simulator.
     """
 
     name: str
@@ -73,7 +92,7 @@ class Joint:
 
     def motion(self, q: float) -> NDArray[np.float64]:
         """(4, 4) transform of the child frame in the joint frame at configuration q."""
-        if self.type == "revolute":
+        if self.type in ROTATING_JOINTS:
             return make_transform(rotation=axis_angle(self.axis, q))
         if self.type == "prismatic":
             return make_transform(translation=self.axis * q)
@@ -105,6 +124,35 @@ class ArticulatedObject:
     def dof(self) -> int:
         return len(self.movable_joints)
 
+    def parent_indices(self) -> list[int]:
+        """Parent link index of every link, in `links` order; -1 for the root.
+
+        Raises ValueError unless the joints form a tree over `links` rooted at
+        `links[0]` with every parent listed before its child's joint.
+        """
+        index = {link.name: i for i, link in enumerate(self.links)}
+        if len(index) != len(self.links):
+            raise ValueError(f"{self.name}: link names are not unique")
+        if len(self.joints) != len(self.links) - 1:
+            raise ValueError(
+                f"{self.name}: {len(self.joints)} joints for {len(self.links)} links; a tree "
+                "has one joint fewer than links"
+            )
+        parents = [-1] * len(self.links)
+        reached = {0}
+        for joint in self.joints:
+            if joint.parent not in index or joint.child not in index:
+                raise ValueError(f"{self.name}: joint {joint.name} names an unknown link")
+            parent, child = index[joint.parent], index[joint.child]
+            if parent not in reached or child in reached:
+                raise ValueError(
+                    f"{self.name}: joint {joint.name} ({joint.parent} -> {joint.child}) "
+                    "does not extend the tree from the root"
+                )
+            parents[child] = parent
+            reached.add(child)
+        return parents
+
     def link_index(self, name: str) -> int:
         for i, link in enumerate(self.links):
             if link.name == name:
@@ -129,8 +177,8 @@ class ArticulatedObject:
     def joint_frames(self, configuration: NDArray[np.float64]) -> list[NDArray[np.float64]]:
         """World pose (4, 4) of each movable joint's frame at `configuration`.
 
-        The joint frame is fixed to the parent link, so for a 1-level tree it does not
-        depend on the joint's own value.
+        The joint frame is fixed to the parent link: it depends on the values of the
+        joints above it in the tree, never on the joint's own value.
         """
         poses = self.link_poses(configuration)
         by_name = {link.name: pose for link, pose in zip(self.links, poses, strict=True)}

@@ -2,7 +2,9 @@
 
 The URDF is in the object frame: the root link is the body and its `base_pose` is not
 written (it lives in the `ObjectSpec`); whoever loads the file places the base. Every
-link has a visual and a collision element with the same OBJ mesh and an inertial.
+link has a visual and a collision element with the same OBJ mesh and an inertial; a
+virtual link (empty mesh) has only its inertial and no mesh file. A continuous joint's
+`<limit>` carries effort and velocity only (URDF ignores position limits there).
 Numbers are written with `repr(float)`, the shortest text that reads back to the same
 double, so the output is deterministic and exact.
 """
@@ -84,6 +86,8 @@ def _inertial(parent: ET.Element, inertial: Inertial) -> None:
 def _link(robot: ET.Element, link: Link, filename: str, is_root: bool) -> None:
     element = ET.SubElement(robot, "link", name=link.name)
     _inertial(element, link.inertial)
+    if link.mesh.is_empty:
+        return
     for tag in ("visual", "collision"):
         shape = ET.SubElement(element, tag)
         if tag == "collision" and is_root:
@@ -103,14 +107,17 @@ def _joint(robot: ET.Element, joint: Joint) -> None:
     if joint.type == "fixed":
         return
     ET.SubElement(element, "axis", xyz=_nums(joint.axis))
-    ET.SubElement(
-        element,
-        "limit",
-        lower=_num(joint.limits[0]),
-        upper=_num(joint.limits[1]),
-        effort=_num(joint.effort),
-        velocity=_num(joint.velocity),
-    )
+    if joint.type == "continuous":
+        ET.SubElement(element, "limit", effort=_num(joint.effort), velocity=_num(joint.velocity))
+    else:
+        ET.SubElement(
+            element,
+            "limit",
+            lower=_num(joint.limits[0]),
+            upper=_num(joint.limits[1]),
+            effort=_num(joint.effort),
+            velocity=_num(joint.velocity),
+        )
     ET.SubElement(element, "dynamics", damping=_num(joint.damping), friction=_num(joint.friction))
 
 
@@ -124,7 +131,8 @@ def write_urdf(obj: ArticulatedObject, mesh_dir: str = "meshes") -> UrdfFiles:
     meshes: dict[str, str] = {}
     for index, link in enumerate(obj.links):
         filename = f"{mesh_dir}/{link.name}.obj" if mesh_dir else f"{link.name}.obj"
-        meshes[filename] = mesh_to_obj(link.mesh, link.name)
+        if not link.mesh.is_empty:
+            meshes[filename] = mesh_to_obj(link.mesh, link.name)
         _link(robot, link, filename, is_root=index == 0)
     for joint in obj.joints:
         _joint(robot, joint)
