@@ -32,6 +32,7 @@ app = typer.Typer(
 STAGE_MODULES: dict[str, str] = {
     "generate-dataset": "artic.cli.generate_dataset",
     "render-depth": "artic.cli.render_depth",
+    "render-scan": "artic.cli.render_scan",  # run as `artic render-depth render=scan`
     "train-mdn": "artic.cli.train_mdn",
     "evaluate-mdn": "artic.cli.evaluate_mdn",
     "plan-demos": "artic.cli.plan_demos",
@@ -51,6 +52,14 @@ _TASK = typer.Option(None, "--task", help="Chapter 5 task: drawer, microwave, tb
 def _with_task(overrides: list[str] | None, task: str | None) -> list[str]:
     """`--task NAME` is shorthand for the Hydra override `task=NAME`."""
     return [*(overrides or []), *([f"task={task}"] if task else [])]
+
+
+def stage_command(command: str, overrides: list[str] | None) -> str:
+    """The stage a subcommand runs: `render-depth render=scan` runs the scan stage
+    (render-depth's config tree, its own schema, stage name and output folder)."""
+    if command == "render-depth" and "render=scan" in (overrides or []):
+        return "render-scan"
+    return command
 
 
 def load_stage(command: str) -> Any:
@@ -89,7 +98,7 @@ def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, forc
     from artic.cli.stage_runner import resolved_config, run_stage
     from artic.cli.summary import print_result
 
-    stage = load_stage(command)
+    stage = load_stage(stage_command(command, overrides))
     if cfg:
         import yaml
 
@@ -115,7 +124,8 @@ def generate_dataset(
 def render_depth(
     overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
 ) -> None:
-    """Labelled depth images across each object's articulation (section 3.2.3).
+    """Labelled depth images across each object's articulation (section 3.2.3); with
+    render=scan, fused multi-view point clouds with part labels (Chapter 4).
 
     Example: artic render-depth dataset=artifacts/objects/refrigerator
     """

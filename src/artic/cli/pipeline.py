@@ -134,7 +134,7 @@ def run_pipeline(
     dry_run: bool = False,
     values: dict[str, str] | None = None,
 ) -> None:
-    from artic.cli.main import load_stage
+    from artic.cli.main import load_stage, stage_command
     from artic.cli.stage_runner import resolved_config, run_stage
 
     path = pipeline_path(name)
@@ -145,7 +145,7 @@ def run_pipeline(
     for col in ("stage", "cmd", "status", "seconds", "output"):
         table.add_column(col)
     for stage_name, spec in pipeline.stages.items():
-        stage = load_stage(spec.cmd)
+        stage = load_stage(stage_command(spec.cmd, spec.overrides))
         out = str(resolved_config(stage, spec.overrides)["out"])
         if spec.outs and _norm(out) not in {_norm(o) for o in spec.outs}:
             raise InputError(f"{path}: stage {stage_name}: writes {out}, not listed in its outs")

@@ -1,0 +1,334 @@
+"""`artic render-depth render=scan`: labelled point clouds of each object across its
+articulation, for Chapter 4 (part segmentation and kinematic hierarchies).
+
+The scan stage shares render-depth's config tree (`conf/render_depth/`, `render=scan`
+selects `render/scan.yaml`) but has its own schema, stage name ("render-scan") and
+output folder (`artifacts/scans/<category>`). For object i and each of its poses it
+writes a clean cloud (surface samples) and a noisy cloud (K fused Kinect-like views) as
+PLY, in the object frame, with part ids and motion types per point, plus the object's
+ground-truth kinematic tree. Poses come from the dataset's `poses.json` when it has one
+(`generate-dataset dataset=hierarchy`), else from a Latin hypercube over the joint limits
+drawn as render-depth draws it; everything random about object i is seeded by (seed, i),
+so any sharding of the work writes the same bytes.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field
+
+from artic.artifacts.formats import write_csv, write_json
+from artic.artifacts.manifest import verify_file
+from artic.artifacts.object_dataset import ObjectDataset, object_dir
+from artic.cli.stage_runner import Plan, Stage
+from artic.config.schemas import StageConfig, Strict
+from artic.errors import InputError
+from artic.geometry.camera import CameraIntrinsics
+from artic.render.noise import SensorNoiseConfig
+from artic.render.scan import FusionConfig, ScanViewConfig
+
+if TYPE_CHECKING:
+    from artic.objects.model import ArticulatedObject
+
+STAGE_NAME = "render-scan"
+INFO = "scans.json"
+INDEX = "index.csv"
+PREVIEW = "preview.png"
+KINDS = ("clean", "noisy")
+_PREVIEW_POINTS = 4000  # points drawn per cloud in preview.png
+
+
+class ScanRenderConfig(Strict):
+    """What to scan and how (`conf/render_depth/render/scan.yaml`)."""
+
+    backend: Literal["raycast"] = Field("raycast", description="Open3D RaycastingScene")
+    configurations: int = Field(
+        18, gt=0, description="poses per object: the first N of poses.json, else a Latin hypercube"
+    )
+    objects_per_shard: int = Field(16, gt=0, description="objects per resumable chunk")
+    clean_points: int = Field(10000, gt=0, description="surface samples per clean cloud")
+    views: ScanViewConfig = Field(default_factory=ScanViewConfig)
+    fusion: FusionConfig = Field(default_factory=FusionConfig)
+    preview_images: int = Field(6, ge=0, description="clouds shown in preview.png (0: none)")
+    preview_columns: int = Field(3, gt=0, description="clean/noisy pairs per preview row")
+
+
+class IndexRow(NamedTuple):
+    """One row of index.csv: one cloud file."""
+
+    object_id: int
+    pose: int
+    kind: str  # clean | noisy
+    split: str  # train | test
+    points: int
+    file: str  # relative to the output folder
+    configuration: str  # joint values, space-separated, radians / metres
+
+
+class RenderScanConfig(StageConfig):
+    dataset: str = Field(description="a generate-dataset output folder")
+    camera: CameraIntrinsics
+    noise: SensorNoiseConfig
+    render: ScanRenderConfig
+
+
+def scan_file(object_id: int, pose: int, kind: str) -> str:
+    """Relative path of one cloud: scans/<object>_<pose>_<clean|noisy>.ply."""
+    return f"scans/{object_id:06d}_{pose:02d}_{kind}.ply"
+
+
+def tree_file(object_id: int) -> str:
+    """Relative path of an object's ground-truth kinematic tree."""
+    return f"trees/{object_id:06d}.json"
+
+
+@functools.lru_cache(maxsize=2)
+def _dataset(path: str) -> ObjectDataset:
+    return ObjectDataset.open(Path(path))
+
+
+def _ids(ds: ObjectDataset, cfg: RenderScanConfig, chunk: int) -> list[int]:
+    size = cfg.render.objects_per_shard
+    return [r.object_id for r in ds.rows[chunk * size : (chunk + 1) * size]]
+
+
+def _plan(cfg: RenderScanConfig, inputs: dict[str, Path]) -> Plan:
+    n = len(_dataset(str(inputs["dataset"])).rows)
+    size = cfg.render.objects_per_shard
+    return Plan([min(size, n - c * size) for c in range(math.ceil(n / size))], "objects")
+
+
+def _optional_json(ds: ObjectDataset, object_id: int, name: str) -> object | None:
+    """An object's `name` file (verified against the manifest) as JSON, None if absent."""
+    rel = f"{object_dir(object_id)}/{name}"
+    if rel not in ds.manifest.outputs:
+        return None
+    path = verify_file(ds.root, ds.manifest, rel)
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise InputError(f"{path}: not valid JSON ({err.msg})") from None
+
+
+def build_object(ds: ObjectDataset, object_id: int) -> ArticulatedObject:
+    """The object of `spec.json` (verified): an Appendix A category through
+    `objects.categories.build`, a varying-structure one (storage_furniture, lamp,
+    office_chair) through `objects.structures.build_structure`."""
+    from artic.objects.categories import CATEGORIES, build
+    from artic.objects.spec import ObjectSpec
+
+    path = verify_file(ds.root, ds.manifest, f"{object_dir(object_id)}/spec.json")
+    text = path.read_text()
+    try:
+        category = json.loads(text).get("category")
+    except (json.JSONDecodeError, AttributeError):
+        raise InputError(f"{path}: expected a JSON object with a category") from None
+    if category in CATEGORIES:
+        return build(ObjectSpec.model_validate_json(text))
+    from artic.objects.structures import build_structure, parse_structure_spec
+
+    return build_structure(parse_structure_spec(text))
+
+
+def object_poses(
+    ds: ObjectDataset, object_id: int, obj: ArticulatedObject, cfg: RenderScanConfig
+) -> tuple[NDArray[np.float64], str]:
+    """(n, dof) poses of one object and where they came from ("poses.json" or
+    "latin_hypercube"): the first `configurations` rows of the dataset's poses.json,
+    else the Latin hypercube render-depth draws from (seed, object_id)."""
+    from artic.cli.render_depth import latin_hypercube
+
+    n = cfg.render.configurations
+    data = _optional_json(ds, object_id, "poses.json")
+    if data is None:
+        rng = np.random.default_rng([cfg.seed, object_id])
+        limits = [(float(j.limits[0]), float(j.limits[1])) for j in obj.movable_joints]
+        return latin_hypercube(rng, n, limits), "latin_hypercube"
+    where = f"{ds.root / object_dir(object_id)}/poses.json"
+    try:
+        assert isinstance(data, dict)
+        names = [str(v) for v in data["joint_names"]]
+        qs = np.asarray(data["configurations"], dtype=np.float64)
+    except (AssertionError, KeyError, TypeError, ValueError):
+        raise InputError(f"{where}: expected joint_names and configurations") from None
+    expected = [j.name for j in obj.movable_joints]
+    if sorted(names) != sorted(expected) or qs.ndim != 2 or qs.shape[1] != len(names):
+        raise InputError(f"{where}: configurations must be (n, {len(expected)}) for {expected}")
+    order = [names.index(name) for name in expected]
+    return qs[:n, order], "poses.json"
+
+
+def object_motion_types(
+    ds: ObjectDataset, object_id: int, obj: ArticulatedObject
+) -> NDArray[np.int64]:
+    """(P,) motion types: `motion_type_ids` of the dataset's tree.json when it has one,
+    else from the joints (`part_motion_types`)."""
+    from artic.render.scan import part_motion_types
+
+    data = _optional_json(ds, object_id, "tree.json")
+    if data is None:
+        return part_motion_types(obj)
+    where = f"{ds.root / object_dir(object_id)}/tree.json"
+    try:
+        assert isinstance(data, dict)
+        motion = np.asarray(data["motion_type_ids"], dtype=np.int64)
+    except (AssertionError, KeyError, TypeError, ValueError):
+        raise InputError(f"{where}: expected motion_type_ids") from None
+    if motion.shape != (len(obj.links),) or motion.min() < 0 or motion.max() > 3:
+        raise InputError(f"{where}: motion_type_ids must be {len(obj.links)} values in 0..3")
+    return motion
+
+
+def scan_chunk(cfg: RenderScanConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
+    """Scan the objects of chunk `chunk` into tmp: their clouds and trees."""
+    from artic.artifacts.ply import write_ply
+    from artic.render.backend import make_backend
+    from artic.render.scan import fuse_views_many, object_tree, sample_surface, view_poses
+
+    ds = _dataset(str(inputs["dataset"]))
+    rows = {r.object_id: r for r in ds.rows}
+    ids = _ids(ds, cfg, chunk)
+    (tmp / "scans").mkdir(parents=True)
+    (tmp / "trees").mkdir()
+    with make_backend(cfg.render.backend, cfg.camera, threads=1) as backend:
+        for object_id in ids:
+            obj = build_object(ds, object_id)
+            qs, source = object_poses(ds, object_id, obj, cfg)
+            motion = object_motion_types(ds, object_id, obj)
+            tree = object_tree(obj, motion)
+            (tmp / tree_file(object_id)).write_text(tree.to_json() + "\n")
+            cameras = view_poses(obj, qs, cfg.camera, cfg.render.views)
+            noise_rng = np.random.default_rng([cfg.seed, object_id, 3])
+            noisy = fuse_views_many(
+                obj, qs, cameras, backend, cfg.noise, noise_rng, cfg.render.fusion, motion
+            )
+            clean_rng = np.random.default_rng([cfg.seed, object_id, 2])
+            for pose, (q, fused) in enumerate(zip(qs, noisy, strict=True)):
+                clean = sample_surface(obj, q, cfg.render.clean_points, clean_rng, motion)
+                for kind, cloud in zip(KINDS, (clean, fused), strict=True):
+                    comments = [
+                        "artic render-depth render=scan",
+                        f"category {rows[object_id].category}",
+                        f"object_id {object_id}",
+                        f"split {rows[object_id].split}",
+                        f"pose {pose}",
+                        f"kind {kind}",
+                        "configuration " + " ".join(repr(float(v)) for v in q),
+                        f"poses {source}",
+                        "frame object (root link), metres",
+                    ]
+                    write_ply(
+                        tmp / scan_file(object_id, pose, kind),
+                        cloud.points,
+                        part_id=cloud.part_id,
+                        motion_type=cloud.motion_type,
+                        comments=comments,
+                    )
+    return len(ids)
+
+
+def _finalize(
+    cfg: RenderScanConfig, inputs: dict[str, Path], work: Path
+) -> dict[str, float | int | str]:
+    from artic.artifacts.ply import read_ply_header
+
+    ds = _dataset(str(inputs["dataset"]))
+    rows: list[IndexRow] = []
+    sources: set[str] = set()
+    for path in sorted((work / "scans").glob("*.ply")):
+        header = read_ply_header(path)
+        meta = dict(c.partition(" ")[::2] for c in header.comments)
+        vertex = header.element("vertex")
+        assert vertex is not None
+        sources.add(meta["poses"])
+        rows.append(
+            IndexRow(
+                object_id=int(meta["object_id"]),
+                pose=int(meta["pose"]),
+                kind=meta["kind"],
+                split=meta["split"],
+                points=vertex.count,
+                file=path.relative_to(work).as_posix(),
+                configuration=meta["configuration"],
+            )
+        )
+    write_csv(work / INDEX, IndexRow._fields, rows)
+    counts = {k: [r.points for r in rows if r.kind == k] for k in KINDS}
+    info = {
+        "category": ds.category,
+        "objects": len(ds.rows),
+        "clouds_per_kind": len(counts["noisy"]),
+        "poses": sorted(sources),
+        "camera": cfg.camera.model_dump(),
+        "noise": cfg.noise.model_dump(),
+        "render": cfg.render.model_dump(mode="json"),
+        "frame": "object (root link): base at the centre of the body's bottom face, z up, "
+        "front towards -x; metres",
+        "ply_properties": ["x", "y", "z", "part_id", "motion_type"],
+        "motion_types": ["static", "rotating", "translating", "both"],
+    }
+    write_json(work / INFO, info)
+    if cfg.render.preview_images:
+        _write_preview(work, rows, cfg)
+    n_test = sum(1 for r in rows if r.kind == "noisy" and r.split == "test")
+    noisy = counts["noisy"]
+    return {
+        "category": ds.category,
+        "objects": len(ds.rows),
+        "clouds (clean + noisy)": len(rows),
+        "test poses": n_test,
+        "mean noisy points": round(float(np.mean(noisy)), 1) if noisy else 0.0,
+        "poses from": ", ".join(sorted(sources)),
+    }
+
+
+def _write_preview(work: Path, rows: list[IndexRow], cfg: RenderScanConfig) -> None:
+    """preview.png: the first pose of the first objects, clean and noisy side by side,
+    points coloured by part id."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from artic.artifacts.ply import read_ply
+
+    firsts = [r for r in rows if r.pose == 0 and r.kind == "clean"][: cfg.render.preview_images]
+    columns = min(cfg.render.preview_columns, len(firsts))
+    n_rows = math.ceil(len(firsts) / columns)
+    fig = plt.figure(figsize=(5.0 * columns, 2.6 * n_rows), dpi=100)
+    palette = plt.get_cmap("tab10")
+    for i, row in enumerate(firsts):
+        for j, kind in enumerate(KINDS):
+            rel = scan_file(row.object_id, row.pose, kind)
+            cloud = read_ply(work / rel)
+            step = max(1, len(cloud.points) // _PREVIEW_POINTS)
+            p = cloud.points[::step]
+            part = (cloud.part_id if cloud.part_id is not None else np.zeros(len(p)))[::step]
+            ax = fig.add_subplot(n_rows, 2 * columns, 2 * i + j + 1, projection="3d")
+            ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=palette(part % 10), s=1.5, linewidths=0)
+            ax.view_init(elev=20, azim=200)
+            ax.set_box_aspect(tuple(np.ptp(p, axis=0) + 1e-3))
+            ax.set_axis_off()
+            ax.set_title(f"{row.object_id:06d} pose 0 {kind}", fontsize=7)
+    fig.subplots_adjust(left=0, right=1, bottom=0, top=0.95, wspace=0, hspace=0.1)
+    fig.savefig(work / PREVIEW, format="png", metadata={"Software": None})
+    plt.close(fig)
+
+
+STAGE: Stage[RenderScanConfig] = Stage(
+    name=STAGE_NAME,
+    conf="render_depth",
+    schema=RenderScanConfig,
+    plan=_plan,
+    chunk=scan_chunk,
+    finalize=_finalize,
+    inputs={"dataset": "generate-dataset"},
+    input_paths=lambda cfg: {"dataset": Path(cfg.dataset)},
+)
