@@ -5,15 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
-from artic.cli.main import app
-
-
-def run_cli(*args: str) -> tuple[int, str, str]:
-    """Run `artic ARGS...` in-process; returns (exit code, stdout, stderr)."""
-    result = CliRunner().invoke(app, list(args))
-    return result.exit_code, result.stdout, result.stderr
+from cli_runner import run_cli
 
 
 @pytest.fixture(scope="session")

@@ -23,7 +23,7 @@ from artic.artifacts.manifest import (
 from artic.cli.fit_dmp import read_dmp
 from artic.errors import InputError
 from artic.policies.dmp import rollout_dmp
-from conftest import run_cli
+from cli_runner import run_cli
 
 DT = 0.05
 START = np.array([0.0, 0.5, 0.0, -1.5, 0.0, 1.0, 0.0])

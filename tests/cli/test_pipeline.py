@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from artic.artifacts.manifest import read_manifest
-from conftest import run_cli
+from cli_runner import run_cli
 
 
 def test_smoke_pipeline_runs_then_skips(tmp_path, monkeypatch):

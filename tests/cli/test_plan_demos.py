@@ -10,7 +10,7 @@ import pytest
 
 from artic.artifacts.formats import read_npz
 from artic.artifacts.manifest import read_manifest
-from conftest import run_cli
+from cli_runner import run_cli
 
 DEMO_ARRAYS = {"t", "q_robot", "qd_robot", "q_object", "ee_pose"}
 RECORD_KEYS = {"index", "file", "status", "reason", "steps", "q_robot_start", "q_object_start"}

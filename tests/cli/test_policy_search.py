@@ -26,7 +26,7 @@ from artic.artifacts.manifest import (
     package_versions,
 )
 from artic.sim.tasks import get_task
-from conftest import run_cli
+from cli_runner import run_cli
 
 DT = 0.05
 

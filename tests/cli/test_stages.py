@@ -12,7 +12,7 @@ from artic.artifacts.depth_dataset import DepthDataset
 from artic.artifacts.manifest import read_manifest
 from artic.artifacts.object_dataset import ObjectDataset
 from artic.cli import stage_runner
-from conftest import run_cli
+from cli_runner import run_cli
 
 
 def tree_bytes(folder: Path) -> dict[str, bytes]:

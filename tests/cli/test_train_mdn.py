@@ -14,7 +14,7 @@ from artic.artifacts.depth_dataset import DepthDataset
 from artic.artifacts.model_file import load_model_file, save_model_file
 from artic.cli.train_mdn import KIND
 from artic.errors import InputError
-from conftest import run_cli
+from cli_runner import run_cli
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,17 @@
+"""`run_cli`: the CLI in-process through Typer's runner, for tests.
+
+A module of its own (not conftest.py): `from conftest import ...` resolves to whichever
+conftest.py pytest imported first, and tests/objects has one too.
+"""
+
+from __future__ import annotations
+
+from typer.testing import CliRunner
+
+from artic.cli.main import app
+
+
+def run_cli(*args: str) -> tuple[int, str, str]:
+    """Run `artic ARGS...` in-process; returns (exit code, stdout, stderr)."""
+    result = CliRunner().invoke(app, list(args))
+    return result.exit_code, result.stdout, result.stderr
