@@ -301,3 +301,21 @@ def test_interrupted_dapg_resumes_to_the_same_policy(inputs, tmp_path, monkeypat
     a = torch.load(ref / "seeds/seed_000/policy.pt", weights_only=False)["state_dict"]
     b = torch.load(out / "seeds/seed_000/policy.pt", weights_only=False)["state_dict"]
     assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+@pytest.mark.parametrize("task", ["drawer", "microwave", "tball"])
+def test_cpu_experiment_is_the_default_and_paper_has_twenty_seeds(task):
+    from artic.cli.policy_search import PolicySearchConfig
+    from artic.config.compose import compose, validate
+
+    default = compose("policy_search", [f"task={task}"])
+    assert compose("policy_search", [f"task={task}", "experiment=cpu"]) == default
+    paper = validate(
+        PolicySearchConfig, compose("policy_search", [f"task={task}", "experiment=paper"])
+    )
+    assert (paper.seeds, paper.updates, paper.rollouts) == (20, 50, 20)
+    cfg = validate(PolicySearchConfig, default)
+    # the schema's defaults are the yaml's (the Figure 5.2 CPU configuration)
+    assert (cfg.rollouts, cfg.mlp_policy.npg.step_size) == (20, 0.1)
+    fields = PolicySearchConfig.model_fields
+    assert fields["rollouts"].default == cfg.rollouts

@@ -87,7 +87,7 @@ class DMPPolicyConfig(Strict):
 class NPGSettings(Strict):
     """Natural policy gradient / DAPG (artic.learning.npg.NPGConfig)."""
 
-    step_size: float = Field(0.05, gt=0, description="normalised step size delta")
+    step_size: float = Field(0.1, gt=0, description="normalised step size delta")
     gamma: float = Field(0.995, gt=0, le=1, description="discount")
     gae_lambda: float = Field(0.97, ge=0, le=1, description="GAE lambda (1: Monte-Carlo)")
     cg_iters: int = Field(10, gt=0)
@@ -121,7 +121,7 @@ class PolicySearchConfig(StageConfig):
     demos: str = Field(description="a plan-demos output folder (dapg, init=bootstrap)")
     seeds: int = Field(5, gt=0, description="independent runs (thesis: 20)")
     updates: int = Field(50, ge=0, description="policy updates per run")
-    rollouts: int = Field(10, ge=2, description="rollouts per update")
+    rollouts: int = Field(20, ge=2, description="rollouts per update")
     eval_rollouts: int = Field(3, gt=0, description="rollouts of the mean policy per update")
     pi2cma_policy: DMPPolicyConfig = Field(default_factory=DMPPolicyConfig)
     mlp_policy: MLPPolicyConfig = Field(default_factory=MLPPolicyConfig)
