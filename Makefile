@@ -19,9 +19,14 @@ $(STAMP): pyproject.toml scripts/system-deps.sh
 
 demo: setup  ## run the smoke pipeline on tiny defaults and show where its outputs are
 	$(BIN)/artic pipeline smoke
+	$(BIN)/artic infer-hierarchy artifacts/smoke/scans/storage_furniture/scans/000000_00_noisy.ply \
+	  --segmenter artifacts/smoke/models/segmenter/storage_furniture/model.pt \
+	  --labeller artifacts/smoke/models/hierarchy/storage_furniture/model.pt \
+	  --out artifacts/smoke/hierarchy/000000_00
 	@echo
 	@echo "Outputs: artifacts/smoke/ (each folder has a manifest.json; see preview.png in the depth folders)"
-	@find artifacts/smoke -maxdepth 3 -name preview.png | sed 's/^/  /'
+	@find artifacts/smoke -maxdepth 4 -name preview.png -o -maxdepth 4 -name '*.png' -path '*reports*' | sort | sed 's/^/  /'
+	@echo "  artifacts/smoke/hierarchy/000000_00/ (hierarchy.json, object.urdf, parts.ply, hierarchy.png)"
 
 smoke: demo
 

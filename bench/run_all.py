@@ -9,10 +9,13 @@
 
 3. The Chapter 3 network: training images/s, forward latency and throughput, and the
    wall time of an `artic predict` process.
+4. Chapter 4 inference on a 20,000-point scan (default-size networks, untrained weights):
+   segmentation, graph labelling and tree extraction (+ joint axes) in-process, and the
+   wall time of an `artic infer-hierarchy` process (imports and model loading included).
 
 Prints a Markdown report and writes bench/results/latest.json.
 Usage: python bench/run_all.py [--objects 550 2200] [--scenes 24] [--repeats 5]
-       [--only backends|e2e|network]
+       [--only backends|e2e|network|hierarchy]
 (--scenes: objects over the three categories, each rendered at 16 configurations)
 """
 
@@ -233,12 +236,88 @@ def network_benchmark(tmp: Path) -> list[dict[str, object]]:
     return results
 
 
+def _cabinet_scan(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 3) points on the surfaces of a cabinet (body, two doors, two drawers, four
+    handles: 9 parts touching each other) and (n,) part ids."""
+    boxes = [((0.0, 0.0, 0.5), (0.5, 0.8, 1.0))]  # (centre, size), metres
+    boxes += [((-0.26, y, 0.75), (0.02, 0.38, 0.48)) for y in (-0.2, 0.2)]  # doors
+    boxes += [((-0.2, 0.0, z), (0.5, 0.76, 0.22)) for z in (0.13, 0.37)]  # drawers
+    boxes += [((-0.29, y, 0.75), (0.04, 0.02, 0.15)) for y in (-0.05, 0.05)]  # door handles
+    boxes += [((-0.47, 0.0, z), (0.04, 0.2, 0.02)) for z in (0.13, 0.37)]  # drawer handles
+    part = rng.integers(0, len(boxes), n)
+    points = np.empty((n, 3))
+    for k, (centre, size) in enumerate(boxes):
+        idx = np.flatnonzero(part == k)
+        u = rng.uniform(-0.5, 0.5, (len(idx), 3))
+        face = rng.integers(0, 3, len(idx))
+        u[np.arange(len(idx)), face] = np.sign(u[np.arange(len(idx)), face]) * 0.5
+        points[idx] = np.asarray(centre) + u * np.asarray(size)
+    return points.astype(np.float32), part.astype(np.int64)
+
+
+_GRAPH_STEPS = ("graph", "labelling", "tree", "joints")
+
+
+def hierarchy_benchmark(tmp: Path, points: int = 20_000) -> dict[str, object]:
+    """`infer-hierarchy` on a `points`-point scan with the default networks (untrained):
+    in-process medians of 5 runs (models loaded) of the whole pipeline and of its steps;
+    graph labelling + tree + axes also on the 9 true parts (an untrained segmenter finds
+    one part); and the median wall time of 3 `artic infer-hierarchy` processes."""
+    import torch
+
+    from artic.artifacts.ply import write_ply
+    from artic.cli.stage_runner import available_cpus
+    from artic.hierarchy.gnn import GraphLabellingNet
+    from artic.hierarchy.graph import PartGraphConfig
+    from artic.hierarchy.infer import HierarchyConfig, build_hierarchy, infer_hierarchy
+    from artic.hierarchy.models import save_labeller, save_segmenter
+    from artic.hierarchy.segmentation import InferenceConfig, PartSegmentationNet
+
+    torch.set_num_threads(available_cpus())
+    torch.manual_seed(0)
+    segmenter, labeller = PartSegmentationNet().eval(), GraphLabellingNet().eval()
+    cloud, part = _cabinet_scan(points, np.random.default_rng(0))
+    cfg = HierarchyConfig()
+    infer_hierarchy(cloud, segmenter, labeller, cfg)  # warm-up
+    runs = [infer_hierarchy(cloud, segmenter, labeller, cfg) for _ in range(5)]
+    steps = {k: statistics.median(r.timings[k] for r in runs) for k in runs[0].timings}
+    built = [build_hierarchy(cloud, part, labeller, cfg) for _ in range(5)]
+    true_parts = {k: statistics.median(b.timings[k] for b in built) for k in built[0].timings}
+    seg_path, lab_path, scan = tmp / "seg.pt", tmp / "lab.pt", tmp / "scan.ply"
+    save_segmenter(seg_path, "storage_furniture", segmenter, InferenceConfig(), {})
+    save_labeller(lab_path, "storage_furniture", labeller, PartGraphConfig(), {})
+    write_ply(scan, cloud)
+    walls = []
+    for i in range(3):
+        t0 = time.perf_counter()
+        subprocess.run(
+            [*ARTIC, "infer-hierarchy", str(scan), "--out", str(tmp / f"h{i}"),
+             "--segmenter", str(seg_path), "--labeller", str(lab_path)],
+            check=True, capture_output=True,
+        )  # fmt: skip
+        walls.append(time.perf_counter() - t0)
+    return {
+        "points": points,
+        "threads": available_cpus(),
+        "segment_s": round(steps["subsample"] + steps["segment"] + steps["upsample"], 3),
+        "label_tree_axes_s": round(sum(steps[k] for k in _GRAPH_STEPS), 3),
+        "pipeline_s": round(steps["total"], 3),
+        "parts_found": runs[0].num_parts,
+        "true_parts": int(part.max()) + 1,
+        "true_parts_graph_s": round(true_parts["graph"], 3),
+        "true_parts_labelling_s": round(true_parts["labelling"], 3),
+        "true_parts_tree_s": round(true_parts["tree"], 4),
+        "true_parts_joints_s": round(true_parts["joints"], 3),
+        "process_wall_s": round(statistics.median(walls), 2),
+    }  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", type=int, nargs="+", default=[550, 2200])
     parser.add_argument("--scenes", type=int, default=24)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--only", choices=["backends", "e2e", "network"], default=None)
+    parser.add_argument("--only", choices=["backends", "e2e", "network", "hierarchy"], default=None)
     parser.add_argument("--e2e-child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.e2e_child:
@@ -246,10 +325,11 @@ def main() -> None:
         return
     with tempfile.TemporaryDirectory(prefix="artic-bench-") as tmp_dir:
         tmp = Path(tmp_dir)
-        run = {args.only} if args.only else {"backends", "e2e", "network"}
+        run = {args.only} if args.only else {"backends", "e2e", "network", "hierarchy"}
         backends = backend_benchmark(args.scenes, args.repeats, tmp) if "backends" in run else []
         e2e = [end_to_end(n, tmp) for n in sorted(args.objects)] if "e2e" in run else []
         network = network_benchmark(tmp) if "network" in run else []
+        hierarchy = [hierarchy_benchmark(tmp)] if "hierarchy" in run else []
     report = {
         "machine": {
             "cpus": len(__import__("os").sched_getaffinity(0)),
@@ -259,6 +339,7 @@ def main() -> None:
         "backends": backends,
         "end_to_end": e2e,
         "network": network,
+        "hierarchy": hierarchy,
     }
     out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -296,6 +377,19 @@ def main() -> None:
         print(f"| {r['input']} | {r['width']} | {r['train_images_per_s']} "
               f"| {r['forward_batch1_ms']} ms | {r['forward_batch64_images_per_s']} img/s "
               f"| {r['predict_process_wall_s']} s |")  # fmt: skip
+
+    print()
+    print(
+        "| scan points | segment | graph + labelling + tree + axes | pipeline (models loaded) "
+        "| same, 9 true parts: graph / labelling / tree / axes | artic infer-hierarchy wall |"
+    )
+    print("|---|---|---|---|---|---|")
+    for r in hierarchy:
+        print(f"| {r['points']} | {r['segment_s']} s | {r['label_tree_axes_s']} s "
+              f"| {r['pipeline_s']} s ({r['parts_found']} part(s) found) "
+              f"| {r['true_parts_graph_s']} / {r['true_parts_labelling_s']} / "
+              f"{r['true_parts_tree_s']} / {r['true_parts_joints_s']} s "
+              f"| {r['process_wall_s']} s |")  # fmt: skip
 
 
 if __name__ == "__main__":

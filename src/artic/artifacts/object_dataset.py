@@ -7,6 +7,8 @@ Layout (see docs/formats.md)::
     objects/000042/spec.json       every sampled parameter (ObjectSpec)
     objects/000042/object.urdf     body, moving parts and handles; meshes relative
     objects/000042/meshes/*.obj
+    objects/000042/tree.json       dataset=hierarchy: kinematic-tree ground truth (ObjectTree)
+    objects/000042/poses.json      dataset=hierarchy: articulated poses (ArticulatedPoses)
 
 Every file read goes through the manifest's sha256, so a corrupted dataset is reported
 by name instead of silently producing wrong labels.
@@ -18,17 +20,25 @@ import csv
 import io
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
+
+from pydantic import BaseModel
 
 from artic.artifacts.manifest import Manifest, read_manifest, verify_file
 from artic.errors import InputError
 
 if TYPE_CHECKING:
     from artic.objects.spec import ObjectSpec
+    from artic.objects.structures import StructureSpec
+    from artic.objects.tree import ArticulatedPoses, ObjectTree
+
+M = TypeVar("M", bound=BaseModel)
 
 STAGE = "generate-dataset"
 INDEX = "index.csv"
 INDEX_COLUMNS = ("object_id", "split", "category", "dof", "chirality")
+TREE = "tree.json"
+POSES = "poses.json"
 
 
 def object_dir(object_id: int) -> str:
@@ -82,11 +92,60 @@ class ObjectDataset:
     def category(self) -> str:
         return self.rows[0].category
 
-    def spec(self, object_id: int) -> ObjectSpec:
-        from artic.objects.spec import ObjectSpec
+    def spec(self, object_id: int) -> ObjectSpec | StructureSpec:
+        """The object's spec.json (verified), of either family: an Appendix A `ObjectSpec`
+        or a varying-structure `StructureSpec` (`artic.objects.families.parse_spec`)."""
+        from pydantic import ValidationError
+
+        from artic.objects.families import parse_spec
 
         path = verify_file(self.root, self.manifest, f"{object_dir(object_id)}/spec.json")
-        return ObjectSpec.model_validate_json(path.read_text())
+        try:
+            return parse_spec(path.read_text())
+        except (ValueError, ValidationError, KeyError) as err:
+            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            raise InputError(f"{path}: not a valid object spec ({first})") from None
+
+    def template_spec(self, object_id: int) -> ObjectSpec:
+        """The spec of an Appendix A (fixed-structure) object; InputError naming the
+        dataset for a varying-structure category (those have no fixed label columns)."""
+        from artic.objects.spec import ObjectSpec
+
+        spec = self.spec(object_id)
+        if not isinstance(spec, ObjectSpec):
+            raise InputError(
+                f"{self.root}: category {spec.category} has a varying kinematic tree "
+                "(Chapter 4); this stage needs an Appendix A category"
+            )
+        return spec
+
+    def tree(self, object_id: int) -> ObjectTree:
+        """The object's kinematic-tree ground truth, tree.json (verified); written by
+        `generate-dataset dataset=hierarchy`. `.to_kinematic_tree()` gives the Chapter 4
+        library's record."""
+        from artic.objects.tree import ObjectTree
+
+        return self._model(object_id, TREE, ObjectTree)
+
+    def poses(self, object_id: int) -> ArticulatedPoses:
+        """The object's articulated poses, poses.json (verified); `dataset=hierarchy`."""
+        from artic.objects.tree import ArticulatedPoses
+
+        return self._model(object_id, POSES, ArticulatedPoses)
+
+    def _model(self, object_id: int, name: str, model: type[M]) -> M:
+        from pydantic import ValidationError
+
+        rel = f"{object_dir(object_id)}/{name}"
+        if rel not in self.manifest.outputs:
+            raise InputError(
+                f"{self.root / rel}: not in the dataset; generate it with dataset=hierarchy"
+            )
+        path = verify_file(self.root, self.manifest, rel)
+        try:
+            return model.model_validate_json(path.read_text())
+        except ValidationError as err:
+            raise InputError(f"{path}: malformed {name} ({err.errors()[0]['msg']})") from None
 
     def urdf(self, object_id: int) -> Path:
         """Path of the object's URDF after verifying it and its meshes."""

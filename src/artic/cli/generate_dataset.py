@@ -24,6 +24,7 @@ from artic.artifacts.object_dataset import INDEX, INDEX_COLUMNS, object_dir, spl
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig, Strict
 from artic.geometry.camera import CameraIntrinsics
+from artic.objects.families import parse_spec
 from artic.objects.spec import CategoryConfig, ObjectSpec
 from artic.objects.structures import STRUCTURES, StructureConfig, StructureSpec
 
@@ -96,17 +97,6 @@ def sample_object(cfg: GenerateDatasetConfig, object_id: int) -> ObjectSpec | St
     if isinstance(cfg.category, StructureConfig):
         return sample_structure(cfg.category, object_id, rng)
     return sample_spec(cfg.category, cfg.camera, object_id, rng)
-
-
-def parse_spec(text: str) -> ObjectSpec | StructureSpec:
-    """A spec.json of either family, chosen by its `category` field."""
-    import json
-
-    from artic.objects.structures import parse_structure_spec
-
-    if json.loads(text).get("category") in STRUCTURES:
-        return parse_structure_spec(text)
-    return ObjectSpec.model_validate_json(text)
 
 
 def _plan(cfg: GenerateDatasetConfig, inputs: dict[str, Path]) -> Plan:

@@ -39,6 +39,9 @@ STAGE_MODULES: dict[str, str] = {
     "fit-dmp": "artic.cli.fit_dmp",
     "policy-search": "artic.cli.policy_search",
     "evaluate-bootstrap": "artic.cli.evaluate_bootstrap",
+    "train-segmenter": "artic.cli.train_segmenter",
+    "train-hierarchy": "artic.cli.train_hierarchy",
+    "evaluate-hierarchy": "artic.cli.evaluate_hierarchy",
 }
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -144,6 +147,30 @@ def train_mdn(
     run_stage_command("train-mdn", overrides, cfg, force)
 
 
+@app.command("train-segmenter", context_settings=_EXTRA)
+@handle_errors
+def train_segmenter(
+    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
+) -> None:
+    """Train the part segmenter of one category on its scans (section 4.3).
+
+    Example: artic train-segmenter category=storage_furniture
+    """
+    run_stage_command("train-segmenter", overrides, cfg, force)
+
+
+@app.command("train-hierarchy", context_settings=_EXTRA)
+@handle_errors
+def train_hierarchy(
+    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
+) -> None:
+    """Train the graph labelling network of one category on its scans (section 4.4).
+
+    Example: artic train-hierarchy category=storage_furniture
+    """
+    run_stage_command("train-hierarchy", overrides, cfg, force)
+
+
 @app.command("plan-demos", context_settings=_EXTRA)
 @handle_errors
 def plan_demos(
@@ -207,6 +234,19 @@ def evaluate_mdn(
     run_stage_command("evaluate-mdn", overrides, cfg, force)
 
 
+@evaluate_app.command("hierarchy", context_settings=_EXTRA)
+@handle_errors
+def evaluate_hierarchy(
+    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
+) -> None:
+    """Tables 4.1 and 4.2 for one category: part mAP, E_type, E_exist, E_dir, E_root,
+    Tree F1 (ground-truth and predicted segmentation, clean and noisy scans).
+
+    Example: artic evaluate hierarchy category=storage_furniture
+    """
+    run_stage_command("evaluate-hierarchy", overrides, cfg, force)
+
+
 @evaluate_app.command("bootstrap", context_settings=_EXTRA)
 @handle_errors
 def evaluate_bootstrap(
@@ -255,6 +295,90 @@ def predict(
         raise InputError(f"--estimator: '{estimator}' (available: most-likely, max-point)")
     result = run(image, category, camera, model, mask, samples, estimator, seed)
     typer.echo(json.dumps(result, indent=2))
+
+
+_SCALE = typer.Option(
+    "1", "--scale", help="auto (millimetre clouds are divided by 1000) or a factor to metres"
+)
+_MAX_POINTS = typer.Option(
+    200_000, "--max-points", help="larger clouds: a seeded random subset is segmented"
+)
+_SEED = typer.Option(0, "--seed", help="seed of the subsampling and graph resampling")
+_CATEGORY4 = typer.Option(
+    None, "--category", help="model category (default models: storage_furniture)"
+)
+
+
+@app.command("segment")
+@handle_errors
+def segment_command(
+    scan: Path = typer.Argument(..., help="point cloud (.ply, metres)"),
+    category: str | None = _CATEGORY4,
+    model: Path | None = typer.Option(
+        None, "--model", help="default: artifacts/models/segmenter/CATEGORY/model.pt"
+    ),
+    out: Path | None = typer.Option(None, "--out", help="default: <scan stem>_segmented/"),
+    scale: str = _SCALE,
+    max_points: int = _MAX_POINTS,
+    seed: int = _SEED,
+) -> None:
+    """Part instances and motion types of every point (section 4.3): parts.ply.
+
+    Example: artic segment scan.ply --category storage_furniture
+    """
+    from artic.cli.infer_hierarchy import Options, print_summary, run_segment
+
+    print_summary(run_segment(scan, model, out, Options(category, scale, max_points, seed)))
+
+
+@app.command("build-hierarchy")
+@handle_errors
+def build_hierarchy_command(
+    parts: Path = typer.Argument(..., help="segmented point cloud (.ply with part_id)"),
+    category: str | None = _CATEGORY4,
+    model: Path | None = typer.Option(
+        None, "--model", help="default: artifacts/models/hierarchy/CATEGORY/model.pt"
+    ),
+    out: Path | None = typer.Option(None, "--out", help="default: <name>_hierarchy/"),
+    scale: str = _SCALE,
+    max_points: int = _MAX_POINTS,
+    seed: int = _SEED,
+) -> None:
+    """Part graph -> labelled graph -> kinematic tree, URDF (sections 4.4, 4.2.3).
+
+    Example: artic build-hierarchy scan_segmented/parts.ply
+    """
+    from artic.cli.infer_hierarchy import Options, print_summary, run_build_hierarchy
+
+    opts = Options(category, scale, max_points, seed)
+    print_summary(run_build_hierarchy(parts, model, out, opts))
+
+
+@app.command("infer-hierarchy")
+@handle_errors
+def infer_hierarchy_command(
+    scan: Path = typer.Argument(..., help="point cloud (.ply, metres)"),
+    out: Path | None = typer.Option(None, "--out", help="default: <scan stem>_hierarchy/"),
+    category: str | None = _CATEGORY4,
+    segmenter: Path | None = typer.Option(
+        None, "--segmenter", help="default: artifacts/models/segmenter/CATEGORY/model.pt"
+    ),
+    labeller: Path | None = typer.Option(
+        None, "--labeller", help="default: artifacts/models/hierarchy/CATEGORY/model.pt"
+    ),
+    scale: str = _SCALE,
+    max_points: int = _MAX_POINTS,
+    seed: int = _SEED,
+) -> None:
+    """Scan -> kinematic hierarchy (Fig. 4.2): hierarchy.json, object.urdf, parts.ply,
+    hierarchy.png.
+
+    Example: artic infer-hierarchy scan.ply --out scan_hierarchy
+    """
+    from artic.cli.infer_hierarchy import Options, print_summary, run_infer_hierarchy
+
+    opts = Options(category, scale, max_points, seed)
+    print_summary(run_infer_hierarchy(scan, segmenter, labeller, out, opts))
 
 
 @app.command("pipeline")

@@ -102,7 +102,7 @@ def render_chunk(cfg: RenderDepthConfig, inputs: dict[str, Path], chunk: int, tm
     ids: list[tuple[int, int, bool]] = []
     with make_backend(cfg.render.backend, cfg.camera, threads=1) as backend:
         for object_id in _ids(ds, cfg, chunk):
-            spec = ds.spec(object_id)
+            spec = ds.template_spec(object_id)
             obj = build(spec)
             columns = label_columns(spec.dof)
             urdf = ds.urdf(object_id) if cfg.render.backend == "pybullet" else None
@@ -158,7 +158,7 @@ def _finalize(
                 preview.append(decode_depth(data["depth"][row]))
                 preview_labels.append(data["labels"][row])
     write_csv(work / LABELS, ["shard", "row", "object_id", "split", "image_index", *columns], rows)
-    category = ds.spec(ds.rows[0].object_id)
+    category = ds.template_spec(ds.rows[0].object_id)
     info = {
         "category": ds.category,
         "dof": dof,

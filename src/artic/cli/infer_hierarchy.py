@@ -1,0 +1,381 @@
+"""`artic segment`, `artic build-hierarchy` and `artic infer-hierarchy`: one scan (PLY) in,
+one output folder out (docs/hierarchy.md, docs/formats.md "Hierarchies (Chapter 4)").
+
+- segment SCAN -> DIR/parts.ply (points, part_id, motion_type, confidence) and
+  DIR/segmentation.json; DIR defaults to `<scan stem>_segmented/` beside the scan.
+- build-hierarchy PARTS (a PLY with part_id) -> DIR/hierarchy.json, object.urdf,
+  meshes/, hierarchy.png; DIR defaults to `<stem>_hierarchy/` beside the file, or, for
+  the parts.ply of a segment output `X_segmented/`, to `X_hierarchy/` beside it.
+- infer-hierarchy SCAN -> both: hierarchy.json, object.urdf, meshes/, parts.ply,
+  hierarchy.png; DIR defaults to `<scan stem>_hierarchy/`.
+
+Inputs are checked before any work: a missing, empty or non-PLY file, NaN or infinite
+coordinates, fewer points than the segmenter needs, or millimetre units (unless
+`--scale auto`, which divides by 1000 and says so) exit with code 2 and one line. A
+cloud above `--max-points` is handled by working on a seeded random subset (logged);
+every input point still gets a label. Outputs are in metres.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from artic.artifacts.manifest import LOG
+from artic.artifacts.ply import write_ply
+from artic.cli.hierarchy_output import (
+    OutputFolder,
+    draw_hierarchy,
+    dumps,
+    hierarchy_document,
+    motion_dict,
+)
+from artic.cli.scan_input import (
+    Options,
+    Scan,
+    default_out,
+    load_labeller_for,
+    load_segmenter_for,
+    read_scan,
+)
+from artic.cli.stage_runner import InternalError
+from artic.errors import InputError
+from artic.hierarchy.types import MOTION_TYPES
+
+if TYPE_CHECKING:
+    from artic.hierarchy.infer import (
+        HierarchyConfig,
+        HierarchyResult,
+        LabelledHierarchy,
+        ScanSegmentation,
+    )
+    from artic.hierarchy.models import LoadedLabeller, LoadedSegmenter
+
+__all__ = ["Options", "print_summary", "run_build_hierarchy", "run_infer_hierarchy", "run_segment"]
+
+log = logging.getLogger("artic")
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    """What a command did, for the summary: the folder, the parts, the tree."""
+
+    command: str
+    out: Path
+    num_parts: int
+    points: int
+    hierarchy: LabelledHierarchy | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _config(
+    segmenter: LoadedSegmenter | None, labeller: LoadedLabeller | None, opts: Options
+) -> HierarchyConfig:
+    from artic.hierarchy.infer import HierarchyConfig
+
+    cfg = HierarchyConfig(max_points=opts.max_points)
+    if segmenter is not None:
+        cfg = HierarchyConfig(segmenter.inference, cfg.graph, cfg.joints, opts.max_points)
+    if labeller is not None:
+        cfg = HierarchyConfig(cfg.segmentation, labeller.graph, cfg.joints, opts.max_points)
+    return cfg
+
+
+def _options_dict(opts: Options, models: dict[str, Path]) -> dict[str, Any]:
+    return {
+        "category": opts.category,
+        "scale": opts.scale,
+        "max_points": opts.max_points,
+        "seed": opts.seed,
+        **{name: str(path) for name, path in models.items()},
+    }
+
+
+def _write(folder: OutputFolder, command: str, body: Any) -> None:
+    """Run `body(folder.path)`; on failure leave no half-written output (bad input) or
+    keep DIR.partial/ with the traceback in its log (internal error, exit 1)."""
+    import shutil
+
+    try:
+        body(folder.path)
+    except InputError:
+        folder.close_log()
+        shutil.rmtree(folder.path, ignore_errors=True)
+        raise
+    except Exception as err:
+        log.error("internal error in %s:\n%s", command, traceback.format_exc())
+        folder.close_log()
+        raise InternalError(f"{command}: {type(err).__name__}: {err}", folder.path / LOG) from err
+
+
+def _input_info(scan: Scan, worked_on: int) -> dict[str, Any]:
+    return {
+        "file": str(scan.path),
+        "points": len(scan.points),
+        "scale": scan.factor,
+        "worked_on_points": int(worked_on),
+        "frame": "the input's, scaled to metres",
+    }
+
+
+def _timings(timings: dict[str, float]) -> dict[str, float]:
+    return {k: round(v, 4) for k, v in timings.items()}
+
+
+def run_segment(
+    scan_path: Path, model: Path | None, out: Path | None, opts: Options
+) -> CommandResult:
+    """`artic segment`: parts.ply + segmentation.json."""
+    from artic.hierarchy.infer import required_points, segment_scan
+
+    segmenter, model_path = load_segmenter_for(model, opts)
+    scan = read_scan(scan_path, opts, required_points(segmenter.model))
+    out = out or default_out(scan_path, "segment")
+    cfg = _config(segmenter, None, opts)
+    folder = OutputFolder(
+        out,
+        "segment",
+        _options_dict(opts, {"model": model_path}),
+        {"scan": scan_path, "model": model_path},
+    )
+    done: list[ScanSegmentation] = []
+
+    def body(tmp: Path) -> None:
+        rng = np.random.default_rng(opts.seed)
+        seg = segment_scan(scan.points, segmenter.model, cfg, rng)
+        done.append(seg)
+        comments = ["artic segment", f"source {scan_path.name}", "frame input, metres"]
+        write_ply(
+            tmp / "parts.ply",
+            scan.points,
+            seg.part_id,
+            seg.motion_type,
+            seg.part_confidence[seg.part_id],
+            comments,
+        )
+        parts = []
+        for p in range(seg.num_parts):
+            mask = seg.part_id == p
+            votes = np.bincount(seg.motion_type[mask], minlength=len(MOTION_TYPES))
+            parts.append(
+                {
+                    "id": p,
+                    "points": int(mask.sum()),
+                    "confidence": round(float(seg.part_confidence[p]), 6),
+                    "motion_type": MOTION_TYPES[int(votes.argmax())],
+                    "motion_probabilities": motion_dict(seg.motion_prob[mask].mean(axis=0)),
+                }
+            )
+        document = {
+            "format": 1,
+            "kind": "artic-segmentation",
+            "num_parts": seg.num_parts,
+            "parts": parts,
+            "ply": "parts.ply",
+            "input": _input_info(scan, len(seg.sampled)),
+            "models": {"segmenter": str(model_path), "category": segmenter.category},
+            "timings_s": _timings(seg.timings),
+        }
+        (tmp / "segmentation.json").write_text(dumps(document))
+
+    _write(folder, "segment", body)
+    seg = done[0]
+    folder.publish(opts.seed, {"parts": seg.num_parts, "points": len(scan.points)})
+    return CommandResult("segment", out, seg.num_parts, len(scan.points), None, seg.timings)
+
+
+def _geometry_subset(part_id: NDArray[np.int64], opts: Options) -> NDArray[np.int64]:
+    """Indices of at most ~max_points points keeping every part (build-hierarchy)."""
+    from artic.hierarchy.infer import subsample
+
+    idx = subsample(len(part_id), opts.max_points, np.random.default_rng(opts.seed))
+    missing = np.setdiff1d(np.unique(part_id), np.unique(part_id[idx]))
+    extra = [np.flatnonzero(part_id == p)[:32] for p in missing]
+    return np.unique(np.concatenate([idx, *extra])) if extra else idx
+
+
+def _write_hierarchy_files(
+    tmp: Path,
+    points: NDArray[np.float32],
+    part_id: NDArray[np.int64],
+    hierarchy: LabelledHierarchy,
+    document: dict[str, Any],
+    name: str,
+) -> None:
+    """hierarchy.json, object.urdf, meshes/ and hierarchy.png of a hierarchy over the
+    parts of `points` (M, 3) / `part_id` (M,)."""
+    from artic.hierarchy.urdf import TreeUrdfConfig, tree_to_urdf
+
+    (tmp / "hierarchy.json").write_text(dumps(document))
+    robot = re.sub(r"[^A-Za-z0-9_]", "_", name) or "inferred_object"
+    files = tree_to_urdf(hierarchy.tree, points, part_id, TreeUrdfConfig(name=robot))
+    (tmp / "object.urdf").write_text(files.urdf)
+    for rel, text in files.meshes.items():
+        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp / rel).write_text(text)
+    draw_hierarchy(tmp / "hierarchy.png", points, part_id, hierarchy, name)
+
+
+def run_build_hierarchy(
+    parts_path: Path, model: Path | None, out: Path | None, opts: Options
+) -> CommandResult:
+    """`artic build-hierarchy`: hierarchy.json, object.urdf + meshes, hierarchy.png."""
+    from artic.hierarchy.infer import build_hierarchy
+
+    labeller, model_path = load_labeller_for(model, opts)
+    scan = read_scan(parts_path, opts)
+    if scan.part_id is None:
+        raise InputError(
+            f"{parts_path}: no part_id property; segment the scan first (artic segment)"
+        )
+    if scan.part_id.min() < 0:
+        raise InputError(f"{parts_path}: part_id must be >= 0 for every point")
+    input_ids, inverse = np.unique(scan.part_id, return_inverse=True)
+    part_id = inverse.astype(np.int64)
+    out = out or default_out(parts_path, "build-hierarchy")
+    cfg = _config(None, labeller, opts)
+    keep = _geometry_subset(part_id, opts)
+    work, work_id = scan.points[keep], part_id[keep]
+    folder = OutputFolder(
+        out,
+        "build-hierarchy",
+        _options_dict(opts, {"model": model_path}),
+        {"parts": parts_path, "model": model_path},
+    )
+    done: list[LabelledHierarchy] = []
+
+    def body(tmp: Path) -> None:
+        rng = np.random.default_rng(opts.seed)
+        hierarchy = build_hierarchy(work, work_id, labeller.model, cfg, rng)
+        done.append(hierarchy)
+        extra = {
+            "input": _input_info(scan, len(keep)),
+            "models": {
+                "segmenter": None,
+                "labeller": str(model_path),
+                "category": labeller.category,
+            },
+            "timings_s": _timings(hierarchy.timings),
+            "urdf": "object.urdf",
+        }
+        document = hierarchy_document(hierarchy, part_id, None, input_ids.tolist(), extra)
+        _write_hierarchy_files(tmp, work, work_id, hierarchy, document, parts_path.stem)
+
+    _write(folder, "build-hierarchy", body)
+    hierarchy = done[0]
+    folder.publish(opts.seed, {"parts": hierarchy.tree.num_parts, "points": len(scan.points)})
+    return CommandResult(
+        "build-hierarchy",
+        out,
+        hierarchy.tree.num_parts,
+        len(scan.points),
+        hierarchy,
+        hierarchy.timings,
+    )
+
+
+def run_infer_hierarchy(
+    scan_path: Path,
+    segmenter_model: Path | None,
+    labeller_model: Path | None,
+    out: Path | None,
+    opts: Options,
+) -> CommandResult:
+    """`artic infer-hierarchy`: hierarchy.json, object.urdf + meshes, parts.ply,
+    hierarchy.png."""
+    from artic.hierarchy.infer import infer_hierarchy, required_points
+
+    segmenter, seg_path = load_segmenter_for(segmenter_model, opts)
+    labeller, lab_path = load_labeller_for(labeller_model, opts)
+    scan = read_scan(scan_path, opts, required_points(segmenter.model))
+    out = out or default_out(scan_path, "infer-hierarchy")
+    cfg = _config(segmenter, labeller, opts)
+    models = {"segmenter": seg_path, "labeller": lab_path}
+    folder = OutputFolder(
+        out, "infer-hierarchy", _options_dict(opts, models), {"scan": scan_path, **models}
+    )
+    done: list[HierarchyResult] = []
+
+    def body(tmp: Path) -> None:
+        rng = np.random.default_rng(opts.seed)
+        result = infer_hierarchy(scan.points, segmenter.model, labeller.model, cfg, rng)
+        done.append(result)
+        seg, hierarchy = result.segmentation, result.hierarchy
+        extra = {
+            "input": _input_info(scan, len(seg.sampled)),
+            "models": {
+                "segmenter": str(seg_path),
+                "labeller": str(lab_path),
+                "category": labeller.category,
+            },
+            "timings_s": _timings(result.timings),
+            "urdf": "object.urdf",
+            "ply": "parts.ply",
+        }
+        document = hierarchy_document(hierarchy, seg.part_id, seg.part_confidence, None, extra)
+        work = scan.points[seg.sampled]
+        _write_hierarchy_files(
+            tmp, work, seg.part_id[seg.sampled], hierarchy, document, scan_path.stem
+        )
+        motion = np.asarray(hierarchy.tree.motion_types, dtype=np.int64)[seg.part_id]
+        comments = [
+            "artic infer-hierarchy",
+            f"source {scan_path.name}",
+            "frame input, metres",
+            "motion_type: the part's, as in hierarchy.json",
+        ]
+        write_ply(
+            tmp / "parts.ply",
+            scan.points,
+            seg.part_id,
+            motion,
+            seg.part_confidence[seg.part_id],
+            comments,
+        )
+
+    _write(folder, "infer-hierarchy", body)
+    result = done[0]
+    folder.publish(opts.seed, {"parts": result.num_parts, "points": len(scan.points)})
+    return CommandResult(
+        "infer-hierarchy", out, result.num_parts, len(scan.points), result.hierarchy, result.timings
+    )
+
+
+def print_summary(result: CommandResult) -> None:
+    """Parts, joints and timings as Rich tables, then the output folder (not under -q)."""
+    if not logging.getLogger().isEnabledFor(logging.INFO):
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    console.print(f"[bold]{result.command}[/]: {result.points:,} points, {result.num_parts} parts")
+    h = result.hierarchy
+    if h is not None:
+        tree = h.tree
+        table = Table(title=f"kinematic tree (root: part {tree.root})", title_justify="left")
+        for column in ("edge", "joint", "motion", "p exist", "p dir", "axis"):
+            table.add_column(column)
+        for k, ((a, b), joint_type) in enumerate(zip(tree.edges, tree.joint_types, strict=True)):
+            axis = None if tree.axes is None else tree.axes[k]
+            exists, direction = h.edge_exists[k], h.edge_direction[k]
+            table.add_row(
+                f"{a} -> {b}",
+                joint_type,
+                MOTION_TYPES[tree.motion_types[b]],
+                "-" if np.isnan(exists) else f"{exists:.2f}",
+                "-" if np.isnan(direction) else f"{direction:.2f}",
+                "-" if axis is None else ",".join(f"{v:+.2f}" for v in axis.direction),
+            )
+        if tree.edges:
+            console.print(table)
+    steps = ", ".join(f"{k} {v:.3f} s" for k, v in result.timings.items())
+    console.print(f"timings: {steps}")
+    console.print(f"output: {result.out}")

@@ -1,0 +1,154 @@
+"""Trained Chapter 4 networks as `model.pt` files: the part segmenter (section 4.3) and the
+graph labelling network (section 4.4), each with what is needed to use it.
+
+`save_segmenter` / `load_segmenter`: a `PartSegmentationNet`, its architecture
+(`SegmentationConfig`) and the `InferenceConfig` it was trained for (the number of points
+the cloud is downsampled to must match training), kind "part-segmenter".
+`save_labeller` / `load_labeller`: a `GraphLabellingNet`, its `GraphNetConfig` and the
+`PartGraphConfig` of the part graphs it was trained on, kind "hierarchy-gnn".
+
+Both wrap `artic.artifacts.model_file`, which refuses, by name, a file of another kind,
+another category or another format. The loaded network is in evaluation mode, on `device`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+from artic.artifacts.model_file import load_model_file, save_model_file
+from artic.errors import InputError
+
+if TYPE_CHECKING:
+    import torch
+
+    from artic.hierarchy.gnn import GraphLabellingNet, GraphNetConfig
+    from artic.hierarchy.graph import PartGraphConfig
+    from artic.hierarchy.segmentation import (
+        InferenceConfig,
+        PartSegmentationNet,
+        SegmentationConfig,
+    )
+
+SEGMENTER_KIND = "part-segmenter"
+LABELLER_KIND = "hierarchy-gnn"
+
+
+class LoadedSegmenter(NamedTuple):
+    """A trained segmenter (eval mode), how to run it, and the file's meta."""
+
+    model: PartSegmentationNet
+    inference: InferenceConfig
+    category: str
+    meta: dict[str, Any]
+
+
+class LoadedLabeller(NamedTuple):
+    """A trained graph labelling network (eval mode), the part-graph settings it was
+    trained with, and the file's meta."""
+
+    model: GraphLabellingNet
+    graph: PartGraphConfig
+    category: str
+    meta: dict[str, Any]
+
+
+def segmentation_config_to_dict(config: SegmentationConfig) -> dict[str, Any]:
+    """JSON-able dict of a SegmentationConfig (tuples become lists)."""
+    return asdict(config)
+
+
+def segmentation_config_from_dict(data: dict[str, Any]) -> SegmentationConfig:
+    """Inverse of `segmentation_config_to_dict`; ValueError/KeyError/TypeError if malformed."""
+    from artic.hierarchy.pointnet2 import PointNet2Config, SetAbstractionSpec
+    from artic.hierarchy.segmentation import SegmentationConfig
+
+    backbone = dict(data["backbone"])
+    backbone["set_abstractions"] = tuple(
+        SetAbstractionSpec(
+            None if s["n_centroids"] is None else int(s["n_centroids"]),
+            float(s["radius"]),
+            int(s["n_neighbours"]),
+            tuple(int(w) for w in s["widths"]),
+        )
+        for s in backbone["set_abstractions"]
+    )
+    backbone["propagations"] = tuple(tuple(int(w) for w in p) for p in backbone["propagations"])
+    return SegmentationConfig(**{**data, "backbone": PointNet2Config(**backbone)})
+
+
+def graph_net_config_from_dict(data: dict[str, Any]) -> GraphNetConfig:
+    from artic.hierarchy.gnn import GraphNetConfig
+
+    return GraphNetConfig(
+        **{**data, "encoder_widths": tuple(int(w) for w in data["encoder_widths"])}
+    )
+
+
+def save_segmenter(
+    path: Path,
+    category: str,
+    model: PartSegmentationNet,
+    inference_cfg: InferenceConfig,
+    meta: dict[str, Any],
+) -> None:
+    """Write `model` (weights moved to the CPU) as a "part-segmenter" model file."""
+    hparams = {
+        "segmentation": segmentation_config_to_dict(model.config),
+        "inference": asdict(inference_cfg),
+    }
+    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
+    save_model_file(path, SEGMENTER_KIND, category, hparams, state, meta)
+
+
+def load_segmenter(
+    path: Path, category: str | None = None, device: str | torch.device = "cpu"
+) -> LoadedSegmenter:
+    """Read a "part-segmenter" model file (of `category` when given); InputError naming
+    the file when it is of another kind, category or format, or does not fit."""
+    from artic.hierarchy.segmentation import InferenceConfig, PartSegmentationNet
+
+    payload = load_model_file(path, SEGMENTER_KIND, category)
+    try:
+        config = segmentation_config_from_dict(payload["hparams"]["segmentation"])
+        inference = InferenceConfig(**payload["hparams"]["inference"])
+        model = PartSegmentationNet(config)
+        model.load_state_dict(payload["state_dict"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as err:
+        raise InputError(f"{path}: segmenter does not load ({type(err).__name__}: {err})") from None
+    model.to(device).eval()
+    return LoadedSegmenter(model, inference, str(payload["category"]), dict(payload["meta"]))
+
+
+def save_labeller(
+    path: Path,
+    category: str,
+    model: GraphLabellingNet,
+    graph_cfg: PartGraphConfig,
+    meta: dict[str, Any],
+) -> None:
+    """Write `model` (weights moved to the CPU) as a "hierarchy-gnn" model file."""
+    hparams = {"network": asdict(model.cfg), "graph": asdict(graph_cfg)}
+    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
+    save_model_file(path, LABELLER_KIND, category, hparams, state, meta)
+
+
+def load_labeller(
+    path: Path, category: str | None = None, device: str | torch.device = "cpu"
+) -> LoadedLabeller:
+    """Read a "hierarchy-gnn" model file (of `category` when given); InputError naming
+    the file when it is of another kind, category or format, or does not fit."""
+    from artic.hierarchy.gnn import GraphLabellingNet
+    from artic.hierarchy.graph import PartGraphConfig
+
+    payload = load_model_file(path, LABELLER_KIND, category)
+    try:
+        network = graph_net_config_from_dict(payload["hparams"]["network"])
+        graph = PartGraphConfig(**payload["hparams"]["graph"])
+        model = GraphLabellingNet(network)
+        model.load_state_dict(payload["state_dict"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as err:
+        raise InputError(f"{path}: labeller does not load ({type(err).__name__}: {err})") from None
+    model.to(device).eval()
+    return LoadedLabeller(model, graph, str(payload["category"]), dict(payload["meta"]))

@@ -1,0 +1,139 @@
+"""`artic train-segmenter` end to end on tiny scans made by the real stages."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import torch
+
+from artic.artifacts.scan_dataset import ScanDataset
+from artic.hierarchy import fit_segmenter
+from artic.hierarchy.models import load_segmenter
+from artic.hierarchy.segmentation import segment
+from cli_runner import run_cli
+from tiny_scans import TinyScans, tiny_hierarchy_scans
+
+ARGS = ("train-segmenter", "debug=tiny", "category=storage_furniture")
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> TinyScans:
+    return tiny_hierarchy_scans(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def trained(tiny: TinyScans, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("segmenter") / "storage_furniture"
+    code, _, err = run_cli(*ARGS, f"scans={tiny.scans}", f"out={out}")
+    assert code == 0, err
+    return out
+
+
+def _weights(folder: Path) -> dict[str, torch.Tensor]:
+    return load_segmenter(folder / "model.pt").model.state_dict()
+
+
+def _same(a: Path, b: Path) -> bool:
+    x, y = _weights(a), _weights(b)
+    return x.keys() == y.keys() and all(torch.equal(x[k], y[k]) for k in x)
+
+
+def test_writes_model_metrics_and_card(trained: Path, tiny: TinyScans) -> None:
+    for name in ("model.pt", "metrics.csv", "model.json", "model_card.md", "manifest.json"):
+        assert (trained / name).is_file(), name
+    rows = (trained / "metrics.csv").read_text().splitlines()
+    assert rows[0].startswith("epoch,train_loss,") and len(rows) == 3
+    loaded = load_segmenter(trained / "model.pt", "storage_furniture")
+    assert loaded.inference.n_points == 128 and loaded.model.config.n_masks == 24
+    test_objects = set(ScanDataset.open(tiny.scans).object_ids("test"))
+    used = set(loaded.meta["train_objects"]) | set(loaded.meta["val_objects"])
+    assert used == {0, 1, 3, 4} and not used & test_objects, "test split never used"
+    assert not set(loaded.meta["train_objects"]) & set(loaded.meta["val_objects"])
+    info = json.loads((trained / "model.json").read_text())
+    assert info["train_clouds"] == 2 * 2 * 2 and info["val_clouds"] == 8  # 2 poses x 2 kinds
+    assert 0.0 <= info["val_map_clean"] <= 1.0 and 0.0 <= info["val_map_noisy"] <= 1.0
+    assert "validation mAP@0.5" in (trained / "model_card.md").read_text()
+    ds = ScanDataset.open(tiny.scans)
+    cloud = ds.cloud(ds.select("test", ("noisy",))[0])
+    result = segment(loaded.model, cloud.points, loaded.inference)
+    assert result.part_id.shape == (len(cloud.points),)
+
+
+def test_same_seed_same_weights(trained: Path, tiny: TinyScans, tmp_path: Path) -> None:
+    code, _, err = run_cli(*ARGS, f"scans={tiny.scans}", f"out={tmp_path / 'again'}")
+    assert code == 0, err
+    assert _same(trained, tmp_path / "again")
+
+
+def test_interrupted_training_resumes_to_the_same_weights(
+    trained: Path, tiny: TinyScans, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    original = fit_segmenter.train_epoch
+    calls: list[int] = []
+
+    def interrupt_second(*args: Any, **kwargs: Any) -> tuple[float, float]:
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(fit_segmenter, "train_epoch", interrupt_second)
+    out = tmp_path / "resumed"
+    code, _, err = run_cli(*ARGS, f"scans={tiny.scans}", f"out={out}")
+    assert code == 130 and "resume" in err and not out.exists()
+    monkeypatch.setattr(fit_segmenter, "train_epoch", original)
+    code, _, err = run_cli(*ARGS, f"scans={tiny.scans}", f"out={out}")
+    assert code == 0, err
+    assert _same(trained, out), "resumed = uninterrupted"
+    assert len((out / "metrics.csv").read_text().splitlines()) == 3
+
+
+def test_bad_inputs_exit_2(tiny: TinyScans, tmp_path: Path) -> None:
+    depth_like = tmp_path / "depth"
+    shutil.copytree(tiny.scans, depth_like)
+    manifest = json.loads((depth_like / "manifest.json").read_text())
+    (depth_like / "manifest.json").write_text(json.dumps(manifest | {"stage": "render-depth"}))
+    cases = [
+        ((f"scans={depth_like}",), "expected a 'render-scan' output"),
+        ((f"scans={tiny.objects}",), "expected a 'render-scan' output"),
+        ((f"scans={tiny.scans}", "category=lamp"), "holds storage_furniture scans, not lamp"),
+        ((f"scans={tiny.scans}", "category=no_such_category"), "no_such_category"),
+        ((f"scans={tiny.scans}", "train.lr=-1"), "train.lr"),
+        ((f"scans={tiny.scans}", "data.val_every=10"), "scan more objects"),
+    ]
+    for extra, message in cases:
+        code, _, err = run_cli(*ARGS, *extra, f"out={tmp_path / 'x'}")
+        assert code == 2, (extra, err)
+        assert message in err, (extra, err)
+        assert len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "x").exists()
+
+
+def test_prepared_clouds_are_cached_for_resume(tiny: TinyScans, tmp_path: Path) -> None:
+    from artic.cli.stage_runner import resolved_config
+    from artic.cli.train_segmenter import STAGE, load_clouds
+    from artic.config.compose import validate
+
+    raw = resolved_config(STAGE, ["debug=tiny", f"scans={tiny.scans}", f"out={tmp_path}"])
+    cfg = validate(STAGE.schema, raw)
+    data, skipped = load_clouds(ScanDataset.open(tiny.scans), [0, 3], cfg)
+    assert skipped == 0 and len(data) == 8
+    assert data.points.shape == (8, 128, 3) and data.noisy.sum() == 4
+    assert set(np.unique(data.object_id)) == {0, 3}
+
+
+@pytest.mark.parametrize("experiment", ["ch4_cpu", "ch4_paper"])
+def test_experiments_compose(experiment: str) -> None:
+    from artic.cli.stage_runner import resolved_config
+    from artic.cli.train_segmenter import STAGE
+    from artic.config.compose import validate
+
+    cfg = validate(STAGE.schema, resolved_config(STAGE, [f"experiment={experiment}"]))
+    network = cfg.model.network()
+    assert network.n_masks == 24 and cfg.data.kinds == ("clean", "noisy")
+    assert cfg.train.lr == (1e-4 if experiment == "ch4_paper" else 1e-3)
