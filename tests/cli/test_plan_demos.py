@@ -144,7 +144,6 @@ def test_noisy_model_is_recorded(tmp_path: Path) -> None:
     [
         ("task=nosuchtask", "task"),
         ("demos.count=-1", "demos.count"),
-        ("model.source=predicted", "planned for a later version"),
         ("task.goal=[0.9]", "task drawer: goal"),
     ],
 )
@@ -170,3 +169,118 @@ def test_a_goal_no_demo_reaches_is_bad_input(tmp_path: Path) -> None:
     assert code == 2, err
     assert "task microwave: no demo could be planned to the goal" in err and "IK" in err
     assert not (tmp_path / "mw").exists()
+
+
+# -- model.source=predicted: the Chapter 3 MDN's estimate from a rendered view ----------
+
+
+@pytest.fixture(scope="session")
+def tiny_drawer_mdn(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A tiny drawer MDN made by the real stages (its estimates are poor)."""
+    root = tmp_path_factory.mktemp("drawer_mdn")
+    steps = [
+        ("generate-dataset", "debug=tiny", "category=drawer", f"out={root / 'objects'}"),
+        ("render-depth", "debug=tiny", f"dataset={root / 'objects'}", f"out={root / 'depth'}"),
+        ("train-mdn", "debug=tiny", "category=drawer", f"depth={root / 'depth'}",
+         f"out={root / 'mdn'}"),
+    ]  # fmt: skip
+    for step in steps:
+        code, _, err = run_cli(*step)
+        assert code == 0, err
+    return root / "mdn"
+
+
+PREDICTED = ("plan-demos", "debug=tiny", "task=drawer", "model.source=predicted")
+
+
+def test_predicted_model_is_planned_on_and_recorded(tiny_drawer_mdn: Path, tmp_path: Path) -> None:
+    out = tmp_path / "predicted"
+    code, _, err = run_cli(*PREDICTED, f"model.mdn={tiny_drawer_mdn}", f"out={out}")
+    # a poor estimate may fail every demo: that is a result (with reasons), not an error
+    assert code == 0, err
+    info = json.loads((out / "demos.json").read_text())
+    model = info["kinematic_model"]
+    assert model["source"] == "predicted" and model["mdn"] == str(tiny_drawer_mdn)
+    assert model["category"] == "drawer" and model["estimator"] == "most-likely"
+    assert model["configuration_error_unit"] == "cm" and model["valid_pixels"] > 500
+    pose = model["object_pose_in_camera"]
+    assert pose["x"] == pytest.approx(1.5) and -0.8 <= pose["z"] <= 0.0
+    for key in ("axis_position_error_cm", "axis_direction_error_deg", "configuration_error"):
+        assert len(model[key]) == 1 and 0 <= model[key][0] < 1e3, key
+    # the recorded errors are those of the recorded labels
+    p, t = model["predicted"], model["true"]
+    origin = [p[f"j0_origin_{a}"] - t[f"j0_origin_{a}"] for a in "xyz"]
+    assert model["axis_position_error_cm"][0] == pytest.approx(
+        100 * np.linalg.norm(origin), abs=1e-3
+    )
+    assert model["configuration_error"][0] == pytest.approx(
+        100 * abs(p["j0_q"] - t["j0_q"]), abs=1e-3
+    )
+    assert t["pose_x"] == pytest.approx(1.5) and t["j0_q"] == 0.0
+    for record in info["demos"]:
+        assert record["status"] in ("ok", "failed")
+        assert (record["status"] == "ok") == (record["reason"] == "")
+        assert (record["file"] is None) == (record["status"] == "failed")
+    manifest = read_manifest(out)
+    assert manifest.inputs["mdn"].content_hash == read_manifest(tiny_drawer_mdn).content_hash
+    assert manifest.inputs["mdn"].stage == "train-mdn"
+    assert manifest.stats["kinematic model"] == "predicted"
+    assert manifest.stats["axis position error (cm)"] == pytest.approx(
+        model["axis_position_error_cm"][0], abs=1e-3
+    )
+    ok = sum(r["status"] == "ok" for r in info["demos"])
+    assert manifest.stats["demos planned"] == ok
+    # the view's sensor noise is seeded: the same run gives the same bytes
+    again = tmp_path / "again"
+    code, _, err = run_cli(*PREDICTED, f"model.mdn={tiny_drawer_mdn}", f"out={again}")
+    assert code == 0, err
+    assert (again / "demos.json").read_bytes() == (out / "demos.json").read_bytes()
+    # another seed, another noisy view, another estimate
+    other = tmp_path / "seed1"
+    code, _, err = run_cli(*PREDICTED, f"model.mdn={tiny_drawer_mdn}", f"out={other}", "seed=1")
+    assert code == 0, err
+    model1 = json.loads((other / "demos.json").read_text())["kinematic_model"]
+    assert model1["true"] == model["true"] and model1["predicted"] != model["predicted"]
+
+
+def test_predicted_model_folder_missing_is_bad_input(tmp_path: Path) -> None:
+    out = tmp_path / "bad"
+    code, _, err = run_cli(*PREDICTED, f"artifacts_root={tmp_path / 'nowhere'}", f"out={out}")
+    assert code == 2, err
+    assert str(tmp_path / "nowhere" / "models" / "mdn" / "drawer") in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_an_mdn_of_another_category_is_bad_input(tiny_depth: Path, tmp_path: Path) -> None:
+    mdn = tmp_path / "microwave_mdn"
+    code, _, err = run_cli(
+        "train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}", f"out={mdn}"
+    )
+    assert code == 0, err
+    out = tmp_path / "bad"
+    code, _, err = run_cli(*PREDICTED, f"model.mdn={mdn}", f"out={out}")
+    assert code == 2, err
+    assert "a model of category microwave, not drawer" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_a_view_the_mdn_was_not_trained_on_is_bad_input(
+    tiny_drawer_mdn: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "bad"
+    code, _, err = run_cli(
+        *PREDICTED, f"model.mdn={tiny_drawer_mdn}", "model.camera.position=[0.7,0.0,0.75]",
+        f"out={out}",
+    )  # fmt: skip
+    assert code == 2, err
+    assert "model.camera" in err and "object x in the camera frame 0.5" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_predicted_is_refused_for_the_tball(tmp_path: Path) -> None:
+    out = tmp_path / "bad"
+    code, _, err = run_cli("plan-demos", "debug=tiny", "task=tball", "model.source=predicted",
+                           f"out={out}")  # fmt: skip
+    assert code == 2, err
+    assert "model.source" in err and "task tball has none" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()

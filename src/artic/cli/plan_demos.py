@@ -3,7 +3,8 @@
 The task's world (`artic.sim.world.TaskWorld`, built once per process) lends the robot's
 inverse kinematics, collision check and forward kinematics as functions to
 `artic.planning.demos.plan_demo`, which plans on a kinematic model of the object: the
-world's true one, or a noisy copy (`model.source`). Demo i is drawn from a generator
+world's true one, a noisy copy, or the one the Chapter 3 MDN (`model.mdn`, a stage
+input) predicts from a rendered depth view (`model.source`). Demo i is drawn from a generator
 seeded by (seed, i); chunks hold `demos.per_chunk` demos, so any sharding writes the same
 demo files. Each planned demo is then executed in the simulator by joint-velocity
 tracking (`execute`), and the object configuration it achieves is recorded: the plan is
@@ -23,17 +24,21 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, model_validator
 
 from artic.artifacts.formats import write_json, write_npz
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 from artic.planning.demos import GraspSettings, NoiseSettings, PlannerSettings, TimingSettings
-from artic.sim.tasks import TaskConfig, TBallScene
+from artic.render.noise import SensorNoiseConfig
+from artic.sim.tasks import ArticulatedScene, TaskConfig, TBallScene
 
 if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
     from artic.objects.model import ArticulatedObject
+    from artic.objects.spec import CategoryConfig, PoseRanges
     from artic.planning.demos import Demo, RobotFunctions
     from artic.sim.world import TaskWorld
 
@@ -41,26 +46,48 @@ DEMOS_JSON = "demos.json"
 TIMINGS_JSON = "timings.json"  # wall-clock planning times: the one output that varies by run
 RECORDS = "records"  # per-demo JSON records, merged into demos.json by finalize
 MODEL_STREAM = 1_000_003  # generator stream of the noisy model: (seed, MODEL_STREAM)
+PERCEPTION_STREAM = 1_000_033  # generator stream of the predicted model's sensor noise
+MDN_KIND = "kinematics-mdn"  # model-file kind written by train-mdn
+
+
+class CameraConfig(Strict):
+    """The camera of the `predicted` model's view: level (z up, as the MDN's camera frame)."""
+
+    position: list[float] | None = Field(
+        None,
+        min_length=3,
+        max_length=3,
+        description="camera position in the world, m; null: placed so that the object's base "
+        "is at the middle of its category's Table A.2 pose ranges (camera frame)",
+    )
+    yaw: float = Field(
+        0.0, description="with a position: heading about world +z, rad (0: along world +x)"
+    )
 
 
 class ModelConfig(Strict):
     """Which kinematic model of the object the demos are planned with."""
 
     source: Literal["true", "noisy", "predicted"] = Field(
-        "true", description="true: the world's model; noisy: it with Gaussian axis errors"
+        "true",
+        description="true: the world's model; noisy: it with Gaussian axis errors; "
+        "predicted: the MDN's estimate from a rendered depth view (drawer, microwave)",
     )
     direction_std_rad: float = Field(0.05, ge=0, description="noisy: axis direction std, rad")
     origin_std_m: float = Field(0.01, ge=0, description="noisy: axis origin std per axis, m")
-
-    @field_validator("source")
-    @classmethod
-    def _available(cls, source: str) -> str:
-        if source == "predicted":
-            raise ValueError(
-                "'predicted' (a model estimated by `artic predict` from a rendered view) is "
-                "planned for a later version; use 'true' or 'noisy'"
-            )
-        return source
+    mdn: str | None = Field(
+        None,
+        description="predicted: a train-mdn output folder of the task's object category; "
+        "null: <artifacts_root>/models/mdn/<category>",
+    )
+    estimator: Literal["most-likely", "max-point"] = Field(
+        "most-likely", description="predicted: the MDN's estimator (section 3.3.1 / 3.3.2)"
+    )
+    camera: CameraConfig = Field(default_factory=CameraConfig, description="predicted: view")
+    noise: SensorNoiseConfig = Field(
+        default_factory=SensorNoiseConfig,
+        description="predicted: the depth sensor model of the view (the training data's)",
+    )
 
 
 class DemosConfig(Strict):
@@ -98,7 +125,25 @@ class PlanDemosConfig(StageConfig):
                     f"task {self.task.name}: {name} {value} is outside the object's range "
                     f"[{low}, {high}]"
                 )
+        if self.model.source == "predicted" and not isinstance(scene, ArticulatedScene):
+            raise ValueError(
+                f"model.source: 'predicted' needs an object with a Chapter 3 MDN category "
+                f"(drawer, microwave); task {self.task.name} has none"
+            )
         return self
+
+
+def mdn_folder(cfg: PlanDemosConfig) -> Path:
+    """The train-mdn output the `predicted` model comes from."""
+    if cfg.model.mdn is not None:
+        return Path(cfg.model.mdn)
+    scene = cfg.task.scene
+    assert isinstance(scene, ArticulatedScene)
+    return Path(cfg.artifacts_root) / "models" / "mdn" / scene.category
+
+
+def _input_paths(cfg: PlanDemosConfig) -> dict[str, Path]:
+    return {"mdn": mdn_folder(cfg)} if cfg.model.source == "predicted" else {}
 
 
 @functools.lru_cache(maxsize=1)
@@ -111,16 +156,21 @@ def _world(task_json: str) -> TaskWorld:
 
 
 def planning_model(
-    cfg: ModelConfig, seed: int, world: TaskWorld
+    cfg: ModelConfig, seed: int, world: TaskWorld, mdn: Path | None = None
 ) -> tuple[ArticulatedObject, dict[str, Any]]:
     """The kinematic model to plan with (one for all demos: the robot estimates the object
-    once) and its record for demos.json; the noisy model is drawn from (seed, MODEL_STREAM)."""
+    once) and its record for demos.json; the noisy model is drawn from (seed,
+    MODEL_STREAM), the predicted one's sensor noise from (seed, PERCEPTION_STREAM)."""
     from artic.planning.models import perturb_model
 
     true = world.kinematic_model()
     record: dict[str, Any] = {"source": cfg.source}
     if cfg.source == "true":
         return true, record
+    if cfg.source == "predicted":
+        if mdn is None:
+            raise ValueError("model.source predicted needs the MDN folder")
+        return predicted_model(cfg, seed, world, mdn)
     rng = np.random.default_rng([seed, MODEL_STREAM])
     noisy = perturb_model(true, cfg.direction_std_rad, cfg.origin_std_m, rng)
     record.update(
@@ -130,6 +180,76 @@ def planning_model(
         origin_error_m=noisy.origin_error_m,
     )
     return noisy.model, record
+
+
+def category_config(category: str) -> CategoryConfig:
+    """`conf/common/category/<category>.yaml`: the ranges the category's MDN was trained on."""
+    from omegaconf import OmegaConf
+
+    from artic.config.compose import conf_dir
+    from artic.objects.spec import CategoryConfig
+
+    path = conf_dir() / "common" / "category" / f"{category}.yaml"
+    if not path.is_file():
+        raise InputError(f"{path}: no such category config")
+    return CategoryConfig.model_validate(OmegaConf.to_container(OmegaConf.load(path)))
+
+
+def camera_pose(cfg: CameraConfig, base_pose: NDArray[np.float64], ranges: PoseRanges) -> Any:
+    """(4, 4) camera-to-world transform of the configured (or centred) level camera."""
+    from artic.planning.perception import centred_camera, level_camera
+
+    if cfg.position is None:
+        return centred_camera(base_pose, ranges)
+    return level_camera(cfg.position, cfg.yaw)
+
+
+def predicted_model(
+    cfg: ModelConfig, seed: int, world: TaskWorld, mdn: Path
+) -> tuple[ArticulatedObject, dict[str, Any]]:
+    """The model the MDN in `mdn` estimates from a rendered view of the world's object
+    (`artic.planning.perception.perceive`) and its demos.json record."""
+    from artic.artifacts.manifest import read_manifest, verify_file
+    from artic.artifacts.model_file import load_model_file
+    from artic.geometry.transforms import yaw_of
+    from artic.kinematics.predict import Predictor
+    from artic.planning.perception import perceive, pose_in_camera, summary, view_problems
+
+    scene = world.cfg.scene
+    assert isinstance(scene, ArticulatedScene)
+    category = scene.category
+    path = verify_file(mdn, read_manifest(mdn, expected_stage="train-mdn"), "model.pt")
+    predictor = Predictor.from_payload(load_model_file(path, MDN_KIND, category))
+    classes = category_config(category)
+    true = world.kinematic_model()
+    spec = scene.spec()
+    camera = camera_pose(cfg.camera, true.base_pose, classes.pose)
+    pose = pose_in_camera(true.base_pose, camera)
+    problems = view_problems(pose, classes.pose, spec, predictor.camera)
+    if problems:
+        raise InputError(
+            f"model.camera: the {category} MDN was not trained on this view: " + "; ".join(problems)
+        )
+    start = np.asarray(world.cfg.object_start, dtype=np.float64)
+    rng = np.random.default_rng([seed, PERCEPTION_STREAM])
+    seen = perceive(
+        true, spec, start, camera, predictor, cfg.noise, rng, cfg.estimator,
+        classes.geometry, classes.chirality,
+    )  # fmt: skip
+    record: dict[str, Any] = {
+        "source": "predicted",
+        "mdn": str(mdn),
+        "category": category,
+        "estimator": cfg.estimator,
+        "camera": {
+            "position": [round(float(v), 6) for v in camera[:3, 3]],
+            "yaw": round(yaw_of(camera[:3, :3]), 6),
+        },
+        "object_pose_in_camera": {k: round(v, 6) for k, v in pose.model_dump().items()},
+        "configuration_error_unit": "deg" if spec.joint_type == "revolute" else "cm",
+        **summary(seen),
+    }
+    return seen.model, record
 
 
 def robot_functions(world: TaskWorld) -> RobotFunctions:
@@ -157,6 +277,8 @@ def _indices(cfg: PlanDemosConfig, chunk: int) -> range:
 
 
 def _plan(cfg: PlanDemosConfig, inputs: dict[str, Path]) -> Plan:
+    if cfg.model.source == "predicted":
+        _cached_model(cfg)  # bad input (model, camera) fails here, before any chunk
     size, n = cfg.demos.per_chunk, cfg.demos.count
     return Plan([min(size, n - c * size) for c in range(math.ceil(n / size))], "demos")
 
@@ -209,14 +331,17 @@ def plan_one(
 
 
 @functools.lru_cache(maxsize=1)
-def _model(task_json: str, model_json: str, seed: int) -> tuple[ArticulatedObject, dict[str, Any]]:
-    """The planning model of a config, drawn once per process."""
+def _model(
+    task_json: str, model_json: str, seed: int, mdn: str | None
+) -> tuple[ArticulatedObject, dict[str, Any]]:
+    """The planning model of a config, drawn (or predicted) once per process."""
     cfg = ModelConfig.model_validate_json(model_json)
-    return planning_model(cfg, seed, _world(task_json))
+    return planning_model(cfg, seed, _world(task_json), Path(mdn) if mdn else None)
 
 
 def _cached_model(cfg: PlanDemosConfig) -> tuple[ArticulatedObject, dict[str, Any]]:
-    return _model(cfg.task.model_dump_json(), cfg.model.model_dump_json(), cfg.seed)
+    mdn = str(mdn_folder(cfg)) if cfg.model.source == "predicted" else None
+    return _model(cfg.task.model_dump_json(), cfg.model.model_dump_json(), cfg.seed, mdn)
 
 
 def execute(world: TaskWorld, demo: Demo, cfg: PlanDemosConfig) -> dict[str, Any]:
@@ -281,7 +406,8 @@ def _finalize(
     # deterministic
     times = [r.pop("planning_time_s") for r in records]
     ok = [r for r in records if r["status"] == "ok"]
-    if not ok:
+    # a perceived model may be too wrong to plan on: that is a result, not bad input
+    if not ok and cfg.model.source != "predicted":
         reasons = sorted({r["reason"] for r in records})
         raise InputError(
             f"task {cfg.task.name}: no demo could be planned to the goal q_O* = "
@@ -290,7 +416,9 @@ def _finalize(
     from artic.sim.world import TaskWorld
 
     # the true model's record needs no world; a noisy one is drawn from it (cached)
-    model_record = {"source": "true"} if cfg.model.source == "true" else _cached_model(cfg)[1]
+    model_record: dict[str, Any] = (
+        {"source": "true"} if cfg.model.source == "true" else _cached_model(cfg)[1]
+    )
     write_json(
         work / DEMOS_JSON,
         {
@@ -324,8 +452,17 @@ def _finalize(
         "demos planned": len(ok),
         "demos failed": len(records) - len(ok),
         "median planning time (s)": float(np.median(times)),
-        "median steps": int(np.median([r["steps"] for r in ok])),
+        "median steps": int(np.median([r["steps"] for r in ok])) if ok else 0,
     }
+    if cfg.model.source == "predicted":
+        unit = model_record["configuration_error_unit"]
+        stats["MDN"] = model_record["mdn"]
+        for key, name in (
+            ("axis_position_error_cm", "axis position error (cm)"),
+            ("axis_direction_error_deg", "axis direction error (deg)"),
+            ("configuration_error", f"configuration error ({unit})"),
+        ):
+            stats[name] = round(float(np.mean(model_record[key])), 4)
     executed = [r["executed"] for r in ok if "executed" in r]
     if executed:
         stats["executed successes"] = sum(e["success"] for e in executed)
@@ -340,4 +477,6 @@ STAGE: Stage[PlanDemosConfig] = Stage(
     plan=_plan,
     chunk=plan_chunk,
     finalize=_finalize,
+    inputs={"mdn": "train-mdn"},
+    input_paths=_input_paths,
 )

@@ -5,8 +5,8 @@ Algorithm 2 plans with an *estimated* object model. Sources:
 - "noisy": the true model with each movable joint's axis direction rotated and its axis
   origin moved by Gaussian errors (`perturb_model`), a stand-in for the errors of a
   single-view estimate (Chapter 3, Table 3.1);
-- "predicted" (planned, not yet available): the model `artic predict` estimates from a
-  rendered depth view of the task's object.
+- "predicted": the model the Chapter 3 network (`artic predict`) estimates from a
+  rendered depth view of the task's object (`artic.planning.perception.perceive`).
 """
 
 from __future__ import annotations
