@@ -12,10 +12,13 @@
 4. Chapter 4 inference on a 20,000-point scan (default-size networks, untrained weights):
    segmentation, graph labelling and tree extraction (+ joint axes) in-process, and the
    wall time of an `artic infer-hierarchy` process (imports and model loading included).
+5. Chapter 5: simulated control steps per second of each task's environment (random
+   actions) and the median planning time per demo of `artic plan-demos` (10 demos, one
+   worker, the default config; target under 2 s).
 
 Prints a Markdown report and writes bench/results/latest.json.
 Usage: python bench/run_all.py [--objects 550 2200] [--scenes 24] [--repeats 5]
-       [--only backends|e2e|network|hierarchy]
+       [--only backends|e2e|network|hierarchy|planning]
 (--scenes: objects over the three categories, each rendered at 16 configurations)
 """
 
@@ -312,12 +315,41 @@ def hierarchy_benchmark(tmp: Path, points: int = 20_000) -> dict[str, object]:
     }  # fmt: skip
 
 
+def planning_benchmark(tmp: Path) -> list[dict[str, object]]:
+    """Per Chapter 5 task: env control steps/s and plan-demos' median planning time."""
+    from artic.sim.envs import measure_steps_per_second
+
+    rows: list[dict[str, object]] = []
+    for task in ("drawer", "microwave", "tball"):
+        steps = [measure_steps_per_second(task, 1000, seed=s) for s in range(3)]
+        out = tmp / "demos" / task
+        cmd = [*ARTIC, "plan-demos", f"task={task}", "runtime.workers=1", f"out={out}"]
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True)
+        wall = time.perf_counter() - t0
+        timings = json.loads((out / "timings.json").read_text())
+        per_demo = [float(d["planning_time_s"]) for d in timings["demos"]]
+        demos = json.loads((out / "demos.json").read_text())["demos"]
+        rows.append({
+            "task": task,
+            "env_steps_per_s": round(statistics.median(steps)),
+            "demos_planned": sum(d["status"] == "ok" for d in demos),
+            "demos": len(demos),
+            "median_planning_s": round(statistics.median(per_demo), 3),
+            "max_planning_s": round(max(per_demo), 3),
+            "plan_demos_wall_s": round(wall, 1),
+        })  # fmt: skip
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", type=int, nargs="+", default=[550, 2200])
     parser.add_argument("--scenes", type=int, default=24)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--only", choices=["backends", "e2e", "network", "hierarchy"], default=None)
+    parser.add_argument(
+        "--only", choices=["backends", "e2e", "network", "hierarchy", "planning"], default=None
+    )
     parser.add_argument("--e2e-child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.e2e_child:
@@ -325,11 +357,12 @@ def main() -> None:
         return
     with tempfile.TemporaryDirectory(prefix="artic-bench-") as tmp_dir:
         tmp = Path(tmp_dir)
-        run = {args.only} if args.only else {"backends", "e2e", "network", "hierarchy"}
+        run = {args.only} if args.only else {"backends", "e2e", "network", "hierarchy", "planning"}
         backends = backend_benchmark(args.scenes, args.repeats, tmp) if "backends" in run else []
         e2e = [end_to_end(n, tmp) for n in sorted(args.objects)] if "e2e" in run else []
         network = network_benchmark(tmp) if "network" in run else []
         hierarchy = [hierarchy_benchmark(tmp)] if "hierarchy" in run else []
+        planning = planning_benchmark(tmp) if "planning" in run else []
     report = {
         "machine": {
             "cpus": len(__import__("os").sched_getaffinity(0)),
@@ -340,6 +373,7 @@ def main() -> None:
         "end_to_end": e2e,
         "network": network,
         "hierarchy": hierarchy,
+        "planning": planning,
     }
     out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -390,6 +424,14 @@ def main() -> None:
               f"| {r['true_parts_graph_s']} / {r['true_parts_labelling_s']} / "
               f"{r['true_parts_tree_s']} / {r['true_parts_joints_s']} s "
               f"| {r['process_wall_s']} s |")  # fmt: skip
+
+    print()
+    print("| task | env control steps/s | demos planned | median planning s | max | wall s |")
+    print("|---|---|---|---|---|---|")
+    for r in planning:
+        planned = f"{r['demos_planned']}/{r['demos']}"
+        print(f"| {r['task']} | {r['env_steps_per_s']} | {planned} | {r['median_planning_s']} "
+              f"| {r['max_planning_s']} | {r['plan_demos_wall_s']} |")  # fmt: skip
 
 
 if __name__ == "__main__":
