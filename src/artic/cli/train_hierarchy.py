@@ -238,7 +238,7 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
         "pretrain_sets": len(parts),
         "val_chamfer": val_chamfer,
         "best_epoch": state.best_epoch,
-        "best_val_loss": state.best_val_loss,
+        "best_val_loss": state.best_val,
         "val_metrics_gt_segmentation": dataclasses.asdict(scores),
     }
     save_labeller(tmp / MODEL, cfg.category.name, model, graph_cfg, meta)

@@ -118,7 +118,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
         "joint_type": ds.info["joint_type"],
         "data": {"path": str(inputs["depth"]), "content_hash": ds.manifest.content_hash},
         "best_epoch": state.best_epoch,
-        "best_val_nll": state.best_val_nll,
+        "best_val_nll": state.best_val,
         "train_images": len(train),
         "val_images": len(val),
     }

@@ -184,8 +184,8 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
 
     from artic.hierarchy.fit_segmenter import (
         AugmentConfig,
+        FitState,
         SegmenterFitConfig,
-        SegmenterFitState,
         fit_segmenter,
         score_segmenter,
     )
@@ -213,14 +213,14 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     t = cfg.train
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     last = resume / "last.pt"
-    state = SegmenterFitState()
+    state = FitState()
     if last.is_file():
         saved = torch.load(last, map_location=device, weights_only=False)
         model.load_state_dict(saved["model"])
         optimizer.load_state_dict(saved["optimizer"])
-        state = SegmenterFitState.from_dict(saved["state"])
+        state = FitState.from_dict(saved["state"])
 
-    def checkpoint(s: SegmenterFitState) -> None:
+    def checkpoint(s: FitState) -> None:
         payload = {"model": model.state_dict(), "optimizer": optimizer.state_dict()}
         torch.save({**payload, "state": s.to_dict()}, last.with_suffix(".tmp"))
         os.replace(last.with_suffix(".tmp"), last)
@@ -243,7 +243,7 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
         "val_clouds": len(val),
         "skipped_clouds": skipped_train + skipped_val,
         "best_epoch": state.best_epoch,
-        "best_val_loss": state.best_val_loss,
+        "best_val_loss": state.best_val,
         "val_map_clean": _finite(scores.map_clean),
         "val_map_noisy": _finite(scores.map_noisy),
         "val_motion_accuracy": _finite(scores.motion_accuracy),

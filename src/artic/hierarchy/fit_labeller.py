@@ -15,9 +15,7 @@ draws its order from (seed, phase, e). No file access here.
 
 from __future__ import annotations
 
-import copy
 import logging
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -42,8 +40,19 @@ from artic.hierarchy.gnn import (
 from artic.hierarchy.graph import PartGraphConfig, build_part_graph, graph_labels
 from artic.hierarchy.tree import extract_tree
 from artic.hierarchy.types import GraphLabels, KinematicTree, PartGraph
+from artic.learning.fit_state import FitState
 
 log = logging.getLogger("artic")
+
+
+@dataclass
+class LabellerFitState(FitState):
+    """`FitState` of the graph network plus its autoencoder pre-training phase."""
+
+    pretrain_epoch: int = 0
+    pretrain_history: list[dict[str, float]] = field(default_factory=list)
+
+
 PRETRAIN, TRAIN = 1, 2  # phase numbers in the seeds
 
 
@@ -118,28 +127,6 @@ class LabellerFitConfig:
     log_every_s: float = 30.0
 
 
-@dataclass
-class LabellerFitState:
-    """Everything needed to resume either phase."""
-
-    pretrain_epoch: int = 0
-    pretrain_history: list[dict[str, float]] = field(default_factory=list)
-    epoch: int = 0
-    best_val_loss: float = math.inf
-    best_epoch: int = 0
-    bad_epochs: int = 0
-    stopped_early: bool = False
-    history: list[dict[str, float]] = field(default_factory=list)
-    best_weights: dict[str, torch.Tensor] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> LabellerFitState:
-        return cls(**data)
-
-
 def part_point_sets(examples: Sequence[LabelledGraph]) -> torch.Tensor:
     """Every node's points of every example: (sum of P, K, 3) float32."""
     return torch.from_numpy(np.concatenate([e.graph.node_points for e in examples]))
@@ -205,13 +192,7 @@ def fit_labeller(
             sums += np.array([float(terms.total), *terms[1:]]) * len(chosen)
         train_terms = sums / max(len(train), 1)
         val_terms = validate_labeller(model, val, cfg.batch_size, device)
-        state.epoch += 1
-        if val_terms[0] < state.best_val_loss:
-            state.best_val_loss, state.best_epoch, state.bad_epochs = val_terms[0], state.epoch, 0
-            state.best_weights = copy.deepcopy({k: t.cpu() for k, t in model.state_dict().items()})
-        else:
-            state.bad_epochs += 1
-            state.stopped_early = state.bad_epochs >= cfg.patience
+        state.end_epoch(val_terms[0], model, cfg.patience)
         seconds = time.perf_counter() - t0
         names = ("loss", "motion", "exists", "direction", "root")
         row: dict[str, float] = {"epoch": state.epoch}
@@ -220,7 +201,7 @@ def fit_labeller(
         state.history.append(row | {"seconds": seconds})
         log.info(
             "epoch %d/%d: train loss %.3f, val loss %.3f (best %.3f at %d), %.1f s",
-            state.epoch, cfg.epochs, train_terms[0], val_terms[0], state.best_val_loss,
+            state.epoch, cfg.epochs, train_terms[0], val_terms[0], state.best_val,
             state.best_epoch, seconds,
         )  # fmt: skip
         on_epoch(state)

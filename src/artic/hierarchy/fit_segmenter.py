@@ -13,7 +13,6 @@ as the uninterrupted run. Checkpoints are the caller's (`on_epoch`); no file acc
 
 from __future__ import annotations
 
-import copy
 import logging
 import math
 import time
@@ -40,6 +39,7 @@ from artic.hierarchy.segmentation import (
     segmentation_loss,
     train_step,
 )
+from artic.learning.fit_state import FitState
 
 log = logging.getLogger("artic")
 
@@ -149,27 +149,6 @@ class SegmenterFitConfig:
     log_every_s: float = 30.0
 
 
-@dataclass
-class SegmenterFitState:
-    """Everything needed to resume: epochs done, early-stopping bookkeeping, per-epoch
-    metrics, best weights so far."""
-
-    epoch: int = 0
-    best_val_loss: float = math.inf
-    best_epoch: int = 0
-    bad_epochs: int = 0
-    stopped_early: bool = False
-    history: list[dict[str, float]] = field(default_factory=list)
-    best_weights: dict[str, torch.Tensor] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> SegmenterFitState:
-        return cls(**data)
-
-
 class ValidationRecord(NamedTuple):
     loss: float  # mean total loss per cloud
     matched_iou: float  # mean soft IoU of the Hungarian-matched masks
@@ -182,10 +161,10 @@ def fit_segmenter(
     train: SegmentationData,
     val: SegmentationData,
     cfg: SegmenterFitConfig,
-    state: SegmenterFitState,
+    state: FitState,
     device: torch.device,
-    on_epoch: Callable[[SegmenterFitState], None],
-) -> SegmenterFitState:
+    on_epoch: Callable[[FitState], None],
+) -> FitState:
     """Train from `state` until `cfg.epochs` or early stopping; `on_epoch(state)` after
     each epoch (state.epoch = epochs done)."""
     model.to(device)
@@ -193,13 +172,7 @@ def fit_segmenter(
         t0 = time.perf_counter()
         train_loss, train_iou = train_epoch(model, optimizer, train, cfg, state.epoch, device)
         v = validate(model, val, cfg.batch_size, device, cfg.loss)
-        state.epoch += 1
-        if v.loss < state.best_val_loss:
-            state.best_val_loss, state.best_epoch, state.bad_epochs = v.loss, state.epoch, 0
-            state.best_weights = copy.deepcopy({k: t.cpu() for k, t in model.state_dict().items()})
-        else:
-            state.bad_epochs += 1
-            state.stopped_early = state.bad_epochs >= cfg.patience
+        state.end_epoch(v.loss, model, cfg.patience)
         seconds = time.perf_counter() - t0
         state.history.append(
             {"epoch": state.epoch, "train_loss": train_loss, "train_matched_iou": train_iou,
@@ -209,7 +182,7 @@ def fit_segmenter(
         log.info(
             "epoch %d/%d: train loss %.3f, val loss %.3f (best %.3f at %d), val IoU %.3f, "
             "%.0f s",
-            state.epoch, cfg.epochs, train_loss, v.loss, state.best_val_loss, state.best_epoch,
+            state.epoch, cfg.epochs, train_loss, v.loss, state.best_val, state.best_epoch,
             v.matched_iou, seconds,
         )  # fmt: skip
         on_epoch(state)

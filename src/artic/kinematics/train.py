@@ -9,13 +9,10 @@ continues exactly as the uninterrupted run would. Saving checkpoints is the call
 
 from __future__ import annotations
 
-import copy
 import logging
-import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -24,6 +21,7 @@ from artic.kinematics.data import DepthSplit
 from artic.kinematics.mdn import KinematicsMDN, mdn_nll
 from artic.kinematics.preprocess import augment
 from artic.kinematics.targets import TargetCodec
+from artic.learning.fit_state import FitState
 
 log = logging.getLogger("artic")
 
@@ -39,27 +37,6 @@ class FitConfig:
     seed: int
     channels_last: bool = True
     log_every_s: float = 30.0
-
-
-@dataclass
-class FitState:
-    """Everything needed to resume: completed epochs, early-stopping bookkeeping,
-    per-epoch metrics, and the best weights so far."""
-
-    epoch: int = 0
-    best_val_nll: float = math.inf
-    best_epoch: int = 0
-    bad_epochs: int = 0
-    stopped_early: bool = False
-    history: list[dict[str, float]] = field(default_factory=list)
-    best_weights: dict[str, torch.Tensor] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> FitState:
-        return cls(**data)
 
 
 def fit(
@@ -83,13 +60,7 @@ def fit(
         t0 = time.perf_counter()
         train_nll = _train_epoch(model, optimizer, train, y_train, cfg, state.epoch, device)
         val_nll = evaluate_nll(model, val, codec, cfg.batch_size, device, cfg.channels_last)
-        state.epoch += 1
-        if val_nll < state.best_val_nll:
-            state.best_val_nll, state.best_epoch, state.bad_epochs = val_nll, state.epoch, 0
-            state.best_weights = copy.deepcopy({k: v.cpu() for k, v in model.state_dict().items()})
-        else:
-            state.bad_epochs += 1
-            state.stopped_early = state.bad_epochs >= cfg.patience
+        state.end_epoch(val_nll, model, cfg.patience)
         seconds = time.perf_counter() - t0
         lr = float(optimizer.param_groups[0]["lr"])
         state.history.append(
@@ -99,7 +70,7 @@ def fit(
         remaining = cfg.epochs - state.epoch
         log.info(
             "epoch %d/%d: train NLL %.3f, val NLL %.3f (best %.3f at %d), %.0f s, ETA %s",
-            state.epoch, cfg.epochs, train_nll, val_nll, state.best_val_nll, state.best_epoch,
+            state.epoch, cfg.epochs, train_nll, val_nll, state.best_val, state.best_epoch,
             seconds, "early stop" if state.stopped_early else f"{remaining * seconds:.0f} s",
         )  # fmt: skip
         on_epoch(state)
