@@ -2,7 +2,7 @@
 
 Each stage has its own config root `conf/<stage>/` (primary `config.yaml` plus groups
 only that stage has, such as `debug/` and `experiment/`); groups shared by stages
-(`camera/`, `category/`, `noise/`) live in `conf/common/`, which is added to Hydra's
+X
 search path. Separate roots let one stage take `dataset=PATH` as a value while another
 has a `dataset` config group.
 """
