@@ -45,7 +45,7 @@ from pydantic import Field
 
 from artic.artifacts.formats import read_npz, write_csv, write_json
 from artic.artifacts.manifest import read_manifest, verify_file
-from artic.cli.stage_runner import Plan, Stage
+from artic.cli.stage_runner import Plan, Stage, available_cpus
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 from artic.policies.dmp import DMPConfig
@@ -335,7 +335,7 @@ def _run_dapg(cfg: PolicySearchConfig, inputs: dict[str, Path], index: int, env:
     from artic.learning.rollout import gaussian_actor, rollout_seeds, rollouts, torch_generator
     from artic.policies.gaussian_mlp import BCConfig, GaussianMLPPolicy, behaviour_clone
 
-    torch.set_num_threads(1)
+    torch.set_num_threads(cfg.runtime.threads or available_cpus())
     seed, m = run_seed(cfg.seed, index), cfg.mlp_policy
     obs_dim = int(env.observation_space.shape[0])
     gen = torch.Generator().manual_seed(seed)
