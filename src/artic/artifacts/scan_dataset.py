@@ -72,7 +72,8 @@ def split_train_objects(object_ids: Sequence[int], val_every: int) -> ObjectSpli
         raise ValueError(f"val_every must be >= 2, got {val_every}")
     ids = sorted(set(object_ids))
     val = [o for i, o in enumerate(ids) if i % val_every == val_every - 1]
-    return ObjectSplit([o for o in ids if o not in set(val)], val)
+    held_out = set(val)
+    return ObjectSplit([o for o in ids if o not in held_out], val)
 
 
 @dataclass(frozen=True)

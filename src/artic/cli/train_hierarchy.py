@@ -29,11 +29,11 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import Field
 
 from artic.artifacts.formats import write_csv, write_json
-from artic.artifacts.scan_dataset import ScanDataset, split_train_objects
+from artic.artifacts.scan_dataset import ScanDataset
 from artic.artifacts.workdir import WorkDir
 from artic.cli.stage_runner import Plan, Stage, available_cpus
-from artic.cli.train_mdn import _device
-from artic.cli.train_segmenter import CategoryRef, DataConfig
+from artic.cli.train_mdn import training_device
+from artic.cli.train_segmenter import CategoryRef, DataConfig, training_objects
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 
@@ -162,16 +162,9 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     from artic.hierarchy.models import save_labeller
 
     torch.set_num_threads(cfg.runtime.threads or available_cpus())
-    device = _device(cfg.train.device)
+    device = training_device(cfg.train.device)
     ds = ScanDataset.open_category(inputs["scans"], cfg.category.name)
-    train_ids = ds.object_ids("train")[: cfg.data.max_train_objects]
-    split = split_train_objects(train_ids, cfg.data.val_every)
-    if not split.train or not split.val:
-        raise InputError(
-            f"scans: {inputs['scans']} has {len(train_ids)} training objects; with "
-            f"data.val_every={cfg.data.val_every} that leaves {len(split.train)} to train "
-            f"on and {len(split.val)} to validate on; scan more objects"
-        )
+    split = training_objects(ds, cfg.data)
     resume = WorkDir(Path(cfg.out)).resume_dir("train-hierarchy")
     train, skipped_train = _cached(ds, split.train, cfg, resume / "train.pkl")
     val, skipped_val = _cached(ds, split.val, cfg, resume / "val.pkl")

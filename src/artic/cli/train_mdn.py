@@ -77,7 +77,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     from artic.kinematics.train import FitConfig, FitState, fit
 
     torch.set_num_threads(cfg.runtime.threads or available_cpus())
-    device = _device(cfg.train.device)
+    device = training_device(cfg.train.device)
     ds = DepthDataset.open(inputs["depth"])
     t = cfg.train
     train = load_split(ds, "train", t.val_every, t.max_train_objects)
@@ -132,7 +132,8 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     return state.epoch
 
 
-def _device(name: str) -> Any:
+def training_device(name: str) -> Any:
+    """`train.device` (auto | cpu | cuda) as a torch device; cuda without one is bad input."""
     import torch
 
     if name == "cuda" and not torch.cuda.is_available():

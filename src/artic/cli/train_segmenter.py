@@ -25,10 +25,10 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import Field
 
 from artic.artifacts.formats import write_csv, write_json
-from artic.artifacts.scan_dataset import ScanDataset, split_train_objects
+from artic.artifacts.scan_dataset import ObjectSplit, ScanDataset, split_train_objects
 from artic.artifacts.workdir import WorkDir
 from artic.cli.stage_runner import Plan, Stage, available_cpus
-from artic.cli.train_mdn import _device
+from artic.cli.train_mdn import training_device
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 
@@ -98,6 +98,20 @@ class DataConfig(Strict):
     val_every: int = Field(10, ge=2, description="every Nth training object validates")
     max_train_objects: int | None = Field(None, gt=0, description="first N training objects")
     max_poses: int | None = Field(None, gt=0, description="first N poses per object")
+
+
+def training_objects(ds: ScanDataset, data: DataConfig) -> ObjectSplit:
+    """The scan folder's training objects (the first `data.max_train_objects`) split by
+    object into training and validation; InputError when either side is empty."""
+    train_ids = ds.object_ids("train")[: data.max_train_objects]
+    split = split_train_objects(train_ids, data.val_every)
+    if not split.train or not split.val:
+        raise InputError(
+            f"scans: {ds.root} has {len(train_ids)} training objects; with "
+            f"data.val_every={data.val_every} that leaves {len(split.train)} to train "
+            f"on and {len(split.val)} to validate on; scan more objects"
+        )
+    return split
 
 
 class AugmentSection(Strict):
@@ -193,16 +207,9 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     from artic.hierarchy.segmentation import PartSegmentationNet
 
     torch.set_num_threads(cfg.runtime.threads or available_cpus())
-    device = _device(cfg.train.device)
+    device = training_device(cfg.train.device)
     ds = ScanDataset.open_category(inputs["scans"], cfg.category.name)
-    train_ids = ds.object_ids("train")[: cfg.data.max_train_objects]
-    split = split_train_objects(train_ids, cfg.data.val_every)
-    if not split.train or not split.val:
-        raise InputError(
-            f"scans: {inputs['scans']} has {len(train_ids)} training objects; with "
-            f"data.val_every={cfg.data.val_every} that leaves {len(split.train)} to train "
-            f"on and {len(split.val)} to validate on; scan more objects"
-        )
+    split = training_objects(ds, cfg.data)
     resume = WorkDir(Path(cfg.out)).resume_dir("train-segmenter")
     train, skipped_train = _cached_data(ds, split.train, cfg, resume / "train.npz")
     val, skipped_val = _cached_data(ds, split.val, cfg, resume / "val.npz")
