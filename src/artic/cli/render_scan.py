@@ -117,26 +117,6 @@ def _optional_json(ds: ObjectDataset, object_id: int, name: str) -> object | Non
         raise InputError(f"{path}: not valid JSON ({err.msg})") from None
 
 
-def build_object(ds: ObjectDataset, object_id: int) -> ArticulatedObject:
-    """The object of `spec.json` (verified): an Appendix A category through
-    `objects.categories.build`, a varying-structure one (storage_furniture, lamp,
-    office_chair) through `objects.structures.build_structure`."""
-    from artic.objects.categories import CATEGORIES, build
-    from artic.objects.spec import ObjectSpec
-
-    path = verify_file(ds.root, ds.manifest, f"{object_dir(object_id)}/spec.json")
-    text = path.read_text()
-    try:
-        category = json.loads(text).get("category")
-    except (json.JSONDecodeError, AttributeError):
-        raise InputError(f"{path}: expected a JSON object with a category") from None
-    if category in CATEGORIES:
-        return build(ObjectSpec.model_validate_json(text))
-    from artic.objects.structures import build_structure, parse_structure_spec
-
-    return build_structure(parse_structure_spec(text))
-
-
 def object_poses(
     ds: ObjectDataset, object_id: int, obj: ArticulatedObject, cfg: RenderScanConfig
 ) -> tuple[NDArray[np.float64], str]:
@@ -189,6 +169,7 @@ def object_motion_types(
 def scan_chunk(cfg: RenderScanConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
     """Scan the objects of chunk `chunk` into tmp: their clouds and trees."""
     from artic.artifacts.ply import write_ply
+    from artic.objects.families import build_object
     from artic.render.backend import make_backend
     from artic.render.scan import fuse_views_many, object_tree, sample_surface, view_poses
 
@@ -199,7 +180,7 @@ def scan_chunk(cfg: RenderScanConfig, inputs: dict[str, Path], chunk: int, tmp: 
     (tmp / "trees").mkdir()
     with make_backend(cfg.render.backend, cfg.camera, threads=1) as backend:
         for object_id in ids:
-            obj = build_object(ds, object_id)
+            obj = build_object(ds.spec(object_id))
             qs, source = object_poses(ds, object_id, obj, cfg)
             motion = object_motion_types(ds, object_id, obj)
             tree = object_tree(obj, motion)
