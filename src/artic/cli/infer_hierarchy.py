@@ -44,6 +44,7 @@ from artic.cli.scan_input import (
     load_labeller_for,
     load_segmenter_for,
     read_scan,
+    require_points,
 )
 from artic.cli.stage_runner import InternalError
 from artic.errors import InputError
@@ -135,8 +136,9 @@ def run_segment(
     """`artic segment`: parts.ply + segmentation.json."""
     from artic.hierarchy.infer import required_points, segment_scan
 
+    scan = read_scan(scan_path, opts)
     segmenter, model_path = load_segmenter_for(model, opts)
-    scan = read_scan(scan_path, opts, required_points(segmenter.model))
+    require_points(scan, required_points(segmenter.model))
     out = out or default_out(scan_path, "segment")
     cfg = _config(segmenter, None, opts)
     folder = OutputFolder(
@@ -229,8 +231,8 @@ def run_build_hierarchy(
     """`artic build-hierarchy`: hierarchy.json, object.urdf + meshes, hierarchy.png."""
     from artic.hierarchy.infer import build_hierarchy
 
-    labeller, model_path = load_labeller_for(model, opts)
     scan = read_scan(parts_path, opts)
+    labeller, model_path = load_labeller_for(model, opts)
     if scan.part_id is None:
         raise InputError(
             f"{parts_path}: no part_id property; segment the scan first (artic segment)"
@@ -292,9 +294,10 @@ def run_infer_hierarchy(
     hierarchy.png."""
     from artic.hierarchy.infer import infer_hierarchy, required_points
 
+    scan = read_scan(scan_path, opts)
     segmenter, seg_path = load_segmenter_for(segmenter_model, opts)
     labeller, lab_path = load_labeller_for(labeller_model, opts)
-    scan = read_scan(scan_path, opts, required_points(segmenter.model))
+    require_points(scan, required_points(segmenter.model))
     out = out or default_out(scan_path, "infer-hierarchy")
     cfg = _config(segmenter, labeller, opts)
     models = {"segmenter": seg_path, "labeller": lab_path}

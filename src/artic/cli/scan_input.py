@@ -74,8 +74,9 @@ def parse_scale(text: str) -> float | None:
     return value
 
 
-def read_scan(path: Path, opts: Options, min_points: int = 1) -> Scan:
-    """Read and check a PLY scan (module doc); InputError naming the file on bad input."""
+def read_scan(path: Path, opts: Options) -> Scan:
+    """Read and check a PLY scan (module doc); InputError naming the file on bad input.
+    Read it before loading any model, so a bad scan is the error the user sees first."""
     if opts.max_points < 1:
         raise InputError(f"--max-points: expected >= 1, got {opts.max_points}")
     scale = parse_scale(opts.scale)
@@ -102,8 +103,6 @@ def read_scan(path: Path, opts: Options, min_points: int = 1) -> Scan:
             "expected an object in metres"
         )
     n = len(cloud.points)
-    if n < min_points:
-        raise InputError(f"{path}: {n} points; the segmenter needs at least {min_points}")
     if cloud.too_many_points:
         log.info(
             "%s: %d points; working on a random subset of %d (seed %d); every point gets "
@@ -115,6 +114,13 @@ def read_scan(path: Path, opts: Options, min_points: int = 1) -> Scan:
         )
     points = (cloud.points.astype(np.float64) * factor).astype(np.float32)
     return Scan(path, points, cloud.part_id, factor)
+
+
+def require_points(scan: Scan, min_points: int) -> None:
+    """InputError naming the file when the scan has fewer points than the segmenter needs."""
+    n = len(scan.points)
+    if n < min_points:
+        raise InputError(f"{scan.path}: {n} points; the segmenter needs at least {min_points}")
 
 
 def default_out(path: Path, command: str) -> Path:
