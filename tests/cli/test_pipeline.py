@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from artic.artifacts.manifest import read_manifest
@@ -61,6 +63,18 @@ def test_dry_run_lists_stages(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, out, _ = run_cli("pipeline", "smoke", "--dry-run")
     assert code == 0 and "depth-drawer" in out and not (tmp_path / "artifacts").exists()
+
+
+SHIPPED = sorted(p.stem for p in (Path(__file__).parents[2] / "stages").glob("*.yaml"))
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_every_shipped_pipeline_composes(name, tmp_path, monkeypatch):
+    """A dry run composes and validates every stage's config (a bad override exits 2)."""
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli("pipeline", name, "--dry-run")
+    assert code == 0, err
+    assert "planned" in out
 
 
 VARS_PIPELINE = """

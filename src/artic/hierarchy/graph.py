@@ -50,10 +50,12 @@ NODE_FEATURES = (
 
 @dataclass(frozen=True)
 class PartGraphConfig:
-    """contact_threshold: metres; two parts closer than this share a candidate edge.
-    points_per_node: K, the points each part is resampled to for the node encoder."""
+    """contact_threshold: metres; two parts closer than this share a candidate edge (the
+    default is train-hierarchy's: 0.02 m leaves ~11% of storage-furniture tree edges out
+    of the graph, 0.05 m ~0.3%). points_per_node: K, the points each part is resampled to
+    for the node encoder."""
 
-    contact_threshold: float = 0.02
+    contact_threshold: float = 0.05
     points_per_node: int = 128
 
 
