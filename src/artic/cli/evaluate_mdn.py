@@ -80,7 +80,7 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
         raise InputError(f"depth: {inputs['depth']} has no test or no training images")
     objects = ObjectDataset.open(Path(ds.manifest.inputs["dataset"].path))
     template = objects.template_spec(int(train.object_id[0]))
-    icp = IcpBaseline(template, train.labels.mean(axis=0), predictor.camera, seed=cfg.seed)
+    icp = IcpBaseline(template, train.labels, predictor.camera)
     result = evaluate(
         predictor, train, test, icp, cfg.evaluate.icp_images, cfg.evaluate.batch_size,
         cfg.evaluate.levels,

@@ -5,10 +5,13 @@
   as network inputs (depth / 4 m, 0 = no return) area-averaged to 32x32, by Euclidean
   distance (over the full image it picks the same neighbours in our tests at 16x the
   cost; the thesis does not give its resolution).
-- ICP: the observed cloud registered to the class's mean model (mean geometry and pose,
-  mean configuration, chirality +1), from 16 initial yaws about the cloud's centroid
-  (point-to-point ICP, Open3D); the best fit (highest fitness, then lowest RMSE) moves
-  the mean model's axes and pose. ICP is rigid: configuration and size stay the mean's.
+- ICP: the observed cloud registered to the class's mean model (mean geometry, position
+  and configuration, chirality +1) in 16 poses, with yaws spread evenly over the training
+  set's yaw range (the class's pose prior, from the training set as Mean and NN are).
+  Each pose is the cloud the camera sees of it (raycast, 2 cm voxels); point-to-point
+  ICP (Open3D) from the centroids' offset; the best fit (highest fitness, then lowest
+  RMSE) moves that pose's axes and base. ICP is rigid: configuration and size stay the
+  mean's.
 """
 
 from __future__ import annotations
@@ -20,13 +23,14 @@ from numpy.typing import NDArray
 
 from artic.evaluation.kinematics import wrap_angle
 from artic.geometry.camera import CameraIntrinsics
-from artic.geometry.transforms import make_transform, rot_z, transform_points
+from artic.geometry.transforms import make_transform
 from artic.objects.categories import build
 from artic.objects.labels import image_labels, label_columns
 from artic.objects.spec import ObjectSpec, Pose
 
 NN_SIZE = 32
 ICP_INITS = 16
+MIN_POINTS = 10
 
 
 def mean_baseline(train_labels: NDArray[np.float64], n: int) -> NDArray[np.float64]:
@@ -52,37 +56,42 @@ def nearest_neighbour(
 
 
 class IcpBaseline:
-    """Registration of observed clouds to the category's mean model."""
+    """Registration of observed clouds to the category's mean model, built from the
+    training labels (N, L): their mean is the model (mean geometry, position and
+    configuration, chirality +1), shown in ICP_INITS poses whose yaws span the training
+    yaws. Each pose is the cloud the training camera sees of it, so the observed cloud is
+    matched to views of the model, not to the model's hidden faces."""
 
     def __init__(
         self,
         template: ObjectSpec,
-        mean_labels: NDArray[np.float64],
+        train_labels: NDArray[np.float64],
         camera: CameraIntrinsics,
         voxel_m: float = 0.02,
         max_distance_m: float = 0.1,
-        seed: int = 0,
     ) -> None:
-        import open3d as o3d
+        from artic.render.raycast import RaycastBackend
 
         columns = label_columns(template.dof)
         col = {c: i for i, c in enumerate(columns)}
-        pose = Pose(**{k: float(mean_labels[col[f"pose_{k}"]]) for k in ("x", "y", "z", "yaw")})
-        dims = {k: float(mean_labels[col[k]]) for k in ("depth", "width", "height")}
-        spec = template.model_copy(update={**dims, "pose": pose, "chirality": 1})
-        q = np.array([mean_labels[col[f"j{j}_q"]] for j in range(template.dof)])
-        obj = build(spec)
-        self.labels = np.array(list(image_labels(spec, obj, q).values()))
+        mean = train_labels.mean(axis=0)
+        dims = {k: float(mean[col[k]]) for k in ("depth", "width", "height")}
+        q = np.array([mean[col[f"j{j}_q"]] for j in range(template.dof)])
+        yaws = train_labels[:, col["pose_yaw"]]
+        renderer = RaycastBackend(camera)
         self.columns = columns
-        mesh = o3d.geometry.TriangleMesh()
-        for link, link_pose in zip(obj.links, obj.link_poses(q), strict=True):
-            part = o3d.geometry.TriangleMesh(
-                o3d.utility.Vector3dVector(transform_points(link_pose, link.mesh.vertices)),
-                o3d.utility.Vector3iVector(link.mesh.triangles.astype(np.int32)),
-            )
-            mesh += part
-        o3d.utility.random.seed(seed)
-        self._model = mesh.sample_points_uniformly(4000)
+        self.views: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
+        for yaw in np.linspace(yaws.min(), yaws.max(), ICP_INITS):
+            xyz = {k: float(mean[col[f"pose_{k}"]]) for k in ("x", "y", "z")}
+            pose = Pose(**xyz, yaw=float(yaw))
+            spec = template.model_copy(update={**dims, "pose": pose, "chirality": 1})
+            obj = build(spec)
+            view = _down_sample(camera.back_project(renderer.render(obj, q).depth), voxel_m)
+            if len(view) >= MIN_POINTS:
+                self.views.append((view, np.array(list(image_labels(spec, obj, q).values()))))
+        if not self.views:
+            raise ValueError("ICP: the mean model is out of the camera's view in every pose")
+        self.labels = self.views[len(self.views) // 2][1]  # the pose nearest the mean yaw
         self.camera, self.voxel, self.max_distance = camera, voxel_m, max_distance_m
 
     def predict(self, depth: NDArray[np.float32]) -> NDArray[np.float64]:
@@ -90,29 +99,33 @@ class IcpBaseline:
         import open3d as o3d
 
         reg = o3d.pipelines.registration
-        points = self.camera.back_project(depth)
-        if len(points) < 10:
+        points = _down_sample(self.camera.back_project(depth), self.voxel)
+        if len(points) < MIN_POINTS:
             return self.labels.copy()
         cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-        cloud = cloud.voxel_down_sample(self.voxel)
-        centre = np.asarray(cloud.points).mean(axis=0)
-        model_centre = np.asarray(self._model.points).mean(axis=0)
-        best = None
-        for k in range(ICP_INITS):
-            # observed -> model: centre on the model's centroid, turned by yaw k
-            turn = make_transform(rotation=rot_z(2 * np.pi * k / ICP_INITS))
-            init = make_transform(translation=model_centre) @ turn
-            init = init @ make_transform(translation=-centre)
+        best: tuple[tuple[float, float], NDArray[np.float64], NDArray[np.float64]] | None = None
+        for view, labels in self.views:
+            # observed -> model view, starting from the centroids' offset
+            init = make_transform(translation=view.mean(axis=0) - points.mean(axis=0))
+            target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(view))
             fit = reg.registration_icp(
-                cloud, self._model, self.max_distance, init,
+                cloud, target, self.max_distance, init,
                 reg.TransformationEstimationPointToPoint(),
                 reg.ICPConvergenceCriteria(max_iteration=30),
             )  # fmt: skip
-            if best is None or (fit.fitness, -fit.inlier_rmse) > (best.fitness, -best.inlier_rmse):
-                best = fit
+            score = (fit.fitness, -fit.inlier_rmse)
+            if best is None or score > best[0]:
+                best = (score, np.asarray(fit.transformation), labels)
         assert best is not None
-        model_to_observed = np.linalg.inv(np.asarray(best.transformation))
-        return relabel_rigid(self.labels, self.columns, model_to_observed)
+        view_to_observed = np.asarray(np.linalg.inv(best[1]), dtype=np.float64)
+        return relabel_rigid(best[2], self.columns, view_to_observed)
+
+
+def _down_sample(points: NDArray[np.float64], voxel_m: float) -> NDArray[np.float64]:
+    import open3d as o3d
+
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    return np.asarray(cloud.voxel_down_sample(voxel_m).points)
 
 
 def relabel_rigid(
