@@ -28,6 +28,7 @@ from artic.config.compose import validate
 from artic.errors import InputError
 from artic.hierarchy.types import KinematicTree
 from artic.objects.categories import build
+from artic.objects.tree import object_tree
 from cli_runner import run_cli
 
 # small and fast: the 128 px camera, 2 poses, 3 views per scan
@@ -134,14 +135,21 @@ def with_files(src: Path, dst: Path, files: dict[str, str]) -> ObjectDataset:
 
 def test_poses_and_motion_types_come_from_hierarchy_files_when_present(tiny_objects, tmp_path):
     poses = {"joint_names": ["joint_0"], "configurations": [[0.1], [0.2], [0.3]]}
-    tree = {"motion_type_ids": [0, 3, 0]}
+    # a tree.json that says the door both rotates and translates: read, not recomputed
+    tree = object_tree(build(ObjectDataset.open(tiny_objects).spec(0)))
+    tree = tree.model_copy(
+        update={"motion_types": ("static", "both", "static"), "motion_type_ids": (0, 3, 0)}
+    )
     ds = with_files(
         tiny_objects,
         tmp_path / "objects",
         {
             "objects/000000/poses.json": json.dumps(poses),
-            "objects/000000/tree.json": json.dumps(tree),
+            "objects/000000/tree.json": tree.model_dump_json(),
             "objects/000001/poses.json": json.dumps({"joint_names": ["x"], "configurations": []}),
+            "objects/000002/poses.json": json.dumps(
+                {"joint_names": ["x"], "configurations": [[0.0]]}
+            ),
         },
     )
     cfg = validate(
@@ -152,8 +160,10 @@ def test_poses_and_motion_types_come_from_hierarchy_files_when_present(tiny_obje
     qs, source = object_poses(ds, 0, obj, cfg)
     assert source == "poses.json" and qs.tolist() == [[0.1], [0.2]]  # first N = 2
     assert object_motion_types(ds, 0, obj).tolist() == [0, 3, 0]
-    with pytest.raises(InputError, match=r"poses\.json"):
+    with pytest.raises(InputError, match=r"000001/poses\.json: malformed"):
         object_poses(ds, 1, build(ds.spec(1)), cfg)
+    with pytest.raises(InputError, match=r"000002/poses\.json: joint_names \['x'\]"):
+        object_poses(ds, 2, build(ds.spec(2)), cfg)
     qs, source = object_poses(ds, 3, build(ds.spec(3)), cfg)
     assert source == "latin_hypercube" and qs.shape == (2, 1)
     assert object_motion_types(ds, 3, build(ds.spec(3))).tolist() == [0, 1, 0]

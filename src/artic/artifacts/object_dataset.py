@@ -119,6 +119,10 @@ class ObjectDataset:
             )
         return spec
 
+    def has(self, object_id: int, name: str) -> bool:
+        """Whether the object's folder holds `name` (e.g. TREE, POSES) in the manifest."""
+        return f"{object_dir(object_id)}/{name}" in self.manifest.outputs
+
     def tree(self, object_id: int) -> ObjectTree:
         """The object's kinematic-tree ground truth, tree.json (verified); written by
         `generate-dataset dataset=hierarchy`. `.to_kinematic_tree()` gives the Chapter 4
@@ -137,7 +141,7 @@ class ObjectDataset:
         from pydantic import ValidationError
 
         rel = f"{object_dir(object_id)}/{name}"
-        if rel not in self.manifest.outputs:
+        if not self.has(object_id, name):
             raise InputError(
                 f"{self.root / rel}: not in the dataset; generate it with dataset=hierarchy"
             )

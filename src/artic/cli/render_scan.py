@@ -15,7 +15,6 @@ so any sharding of the work writes the same bytes.
 from __future__ import annotations
 
 import functools
-import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal, NamedTuple
@@ -25,8 +24,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from artic.artifacts.formats import write_csv, write_json
-from artic.artifacts.manifest import verify_file
-from artic.artifacts.object_dataset import ObjectDataset, object_dir
+from artic.artifacts.object_dataset import POSES, TREE, ObjectDataset, object_dir
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
@@ -105,18 +103,6 @@ def _plan(cfg: RenderScanConfig, inputs: dict[str, Path]) -> Plan:
     return Plan([min(size, n - c * size) for c in range(math.ceil(n / size))], "objects")
 
 
-def _optional_json(ds: ObjectDataset, object_id: int, name: str) -> object | None:
-    """An object's `name` file (verified against the manifest) as JSON, None if absent."""
-    rel = f"{object_dir(object_id)}/{name}"
-    if rel not in ds.manifest.outputs:
-        return None
-    path = verify_file(ds.root, ds.manifest, rel)
-    try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as err:
-        raise InputError(f"{path}: not valid JSON ({err.msg})") from None
-
-
 def object_poses(
     ds: ObjectDataset, object_id: int, obj: ArticulatedObject, cfg: RenderScanConfig
 ) -> tuple[NDArray[np.float64], str]:
@@ -126,23 +112,17 @@ def object_poses(
     from artic.cli.render_depth import latin_hypercube
 
     n = cfg.render.configurations
-    data = _optional_json(ds, object_id, "poses.json")
-    if data is None:
+    if not ds.has(object_id, POSES):
         rng = np.random.default_rng([cfg.seed, object_id])
         limits = [(float(j.limits[0]), float(j.limits[1])) for j in obj.movable_joints]
         return latin_hypercube(rng, n, limits), "latin_hypercube"
-    where = f"{ds.root / object_dir(object_id)}/poses.json"
-    try:
-        assert isinstance(data, dict)
-        names = [str(v) for v in data["joint_names"]]
-        qs = np.asarray(data["configurations"], dtype=np.float64)
-    except (AssertionError, KeyError, TypeError, ValueError):
-        raise InputError(f"{where}: expected joint_names and configurations") from None
-    expected = [j.name for j in obj.movable_joints]
-    if sorted(names) != sorted(expected) or qs.ndim != 2 or qs.shape[1] != len(names):
-        raise InputError(f"{where}: configurations must be (n, {len(expected)}) for {expected}")
+    poses = ds.poses(object_id)
+    names, expected = list(poses.joint_names), [j.name for j in obj.movable_joints]
+    if sorted(names) != sorted(expected):
+        where = ds.root / object_dir(object_id) / POSES
+        raise InputError(f"{where}: joint_names {names} are not the URDF's movable {expected}")
     order = [names.index(name) for name in expected]
-    return qs[:n, order], "poses.json"
+    return poses.array()[:n, order], "poses.json"
 
 
 def object_motion_types(
@@ -152,17 +132,12 @@ def object_motion_types(
     else from the joints (`part_motion_types`)."""
     from artic.render.scan import part_motion_types
 
-    data = _optional_json(ds, object_id, "tree.json")
-    if data is None:
+    if not ds.has(object_id, TREE):
         return part_motion_types(obj)
-    where = f"{ds.root / object_dir(object_id)}/tree.json"
-    try:
-        assert isinstance(data, dict)
-        motion = np.asarray(data["motion_type_ids"], dtype=np.int64)
-    except (AssertionError, KeyError, TypeError, ValueError):
-        raise InputError(f"{where}: expected motion_type_ids") from None
-    if motion.shape != (len(obj.links),) or motion.min() < 0 or motion.max() > 3:
-        raise InputError(f"{where}: motion_type_ids must be {len(obj.links)} values in 0..3")
+    motion = ds.tree(object_id).part_motion_types()
+    if motion.shape != (len(obj.links),):
+        where = ds.root / object_dir(object_id) / TREE
+        raise InputError(f"{where}: {len(motion)} parts, the URDF has {len(obj.links)} links")
     return motion
 
 
