@@ -102,12 +102,22 @@ def test_storage_furniture_counts_of_drawers_and_doors_vary(
 ) -> None:
     counts = set()
     for seed in SEEDS:
-        roles = [
-            link.role for link in build_structure(_spec(configs, "storage_furniture", seed)).links
-        ]
+        spec = _spec(configs, "storage_furniture", seed)
+        links = build_structure(spec).links
+        roles = [link.role for link in links]
         moving = roles.count("drawer") + roles.count("door")
-        assert moving >= 1 and roles.count("handle") == moving
+        assert moving >= 1 and len(roles) == moving + 1  # body + doors/drawers, no handle links
         counts.add((roles.count("drawer"), roles.count("door")))
+        # each door/drawer link carries its handle: its mesh stands out of the front panel
+        p = spec.parts
+        for link in links[1:]:
+            depth = np.ptp(link.mesh.vertices[:, 0])
+            if link.role == "door":
+                assert depth == pytest.approx(
+                    p.door_thickness + p.handle_standoff + p.handle_thickness
+                )
+            else:
+                assert depth > p.handle_standoff + p.handle_thickness
     assert len(counts) >= 4
 
 
@@ -143,7 +153,7 @@ def test_every_tree_is_valid_with_a_single_root(
 def test_motion_types_of_storage_parts(configs: dict[str, StructureConfig]) -> None:
     obj = build_structure(_spec(configs, "storage_furniture", 1))
     tree = object_tree(obj)
-    expected = {"body": "static", "handle": "static", "door": "rotating", "drawer": "translating"}
+    expected = {"body": "static", "door": "rotating", "drawer": "translating"}
     assert [expected[p.role] for p in tree.parts] == list(tree.motion_types)
 
 
@@ -161,7 +171,7 @@ def test_parts_are_watertight_and_moving_parts_do_not_overlap(
             boxes.append((world.min(axis=0), world.max(axis=0)))
         if name != "storage_furniture":
             continue
-        for i in range(1, len(boxes)):  # doors, drawers, handles: disjoint when closed
+        for i in range(1, len(boxes)):  # doors and drawers (handles included): disjoint
             for j in range(i + 1, len(boxes)):
                 overlap = np.minimum(boxes[i][1], boxes[j][1]) - np.maximum(
                     boxes[i][0], boxes[j][0]

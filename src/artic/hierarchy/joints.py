@@ -13,11 +13,13 @@ middle of the door, not its hinge, so the default `method="geometric"` goes furt
   region is a strip (first / second singular value >= `elongation`: an open door
   touches its frame along the hinge), else `up` (the thesis' vertical). Origin: C's
   points are projected on the plane normal to the direction; the corners of their
-  minimum-area rectangle are the candidate hinge lines. The two corners nearest the
-  contact centroid lie on the side facing P; of those, the nearer one is the hinge,
-  unless the contact is ambiguous (a closed door touches along its whole back) and C
-  has children (a handle): then the corner farther from them. The origin sits at the
-  middle of C's extent along the axis.
+  minimum-area rectangle are the candidate hinge lines. The two ends of the rectangle's
+  side nearest the contact centroid face P; of those, the nearer one is the hinge,
+  unless the contact is ambiguous (a closed door touches along its whole back): then the
+  corner farther from the handle, which is C's children when it has any (a handle part
+  of its own), else C's outermost points (the `protrusion` fraction of them farthest
+  from P: a handle that is part of the door's link stands out of its front). The origin
+  sits at the middle of C's extent along the axis.
 - Prismatic. The candidates are +- the axes of C's minimum-volume oriented box
   (trimesh); each sweeps that box along itself by C's own length; the direction whose
   sweep holds the fewest of P's points wins (a drawer leaves through the open side of
@@ -51,7 +53,8 @@ class JointHeuristicConfig:
     the contact region is a strip that gives the hinge direction. ambiguity: relative
     difference of the two candidate hinge corners' distances to the contact centroid
     below which the contact does not decide. box_margin: metres, growth of the boxes of
-    the thesis method."""
+    the thesis method. protrusion: fraction of a part's points farthest from its parent
+    taken as its handle when it has no child parts."""
 
     method: Literal["geometric", "thesis"] = "geometric"
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
@@ -59,6 +62,7 @@ class JointHeuristicConfig:
     elongation: float = 2.5
     ambiguity: float = 0.25
     box_margin: float = 0.01
+    protrusion: float = 0.05
 
 
 def _unit(v: Array) -> Array:
@@ -85,6 +89,24 @@ def _box_axes(points: Array) -> Array:
         return np.asarray(transform[:3, :3], dtype=np.float64)
     except Exception:  # degenerate (flat, collinear) input: qhull fails
         return _principal_axes(points)[1]
+
+
+#: the sides of the rectangle `corners` in revolute_axis: [lo, lo], [lo, hi], [hi, lo], [hi, hi]
+_SIDES = ((0, 1), (2, 3), (0, 2), (1, 3))
+
+
+def _segment_distance(point: Array, a: Array, b: Array) -> float:
+    """Distance from `point` to the segment a-b (all (2,))."""
+    ab = b - a
+    t = float(np.clip((point - a) @ ab / max(float(ab @ ab), 1e-24), 0.0, 1.0))
+    return float(np.linalg.norm(point - (a + t * ab)))
+
+
+def outermost_points(child: Array, parent: Array, fraction: float) -> Array:
+    """The `fraction` of the child's points farthest from the parent (at least one)."""
+    distance, _ = cKDTree(parent).query(child, k=1)
+    k = max(1, round(fraction * len(child)))
+    return child[np.argsort(distance)[-k:]]
 
 
 def contact_region(child: Array, parent: Array, radius: float) -> Array:
@@ -143,7 +165,9 @@ def revolute_axis(
     corners = corners @ axes2 + mean2  # back to plane coordinates
     target = contact.mean(axis=0) @ plane
     distance = np.linalg.norm(corners - target, axis=1)
-    near = np.argsort(distance, kind="stable")[:2]
+    # the rectangle side nearest the contact faces P: its two ends are the candidates
+    side = min(_SIDES, key=lambda e: _segment_distance(target, corners[e[0]], corners[e[1]]))
+    near = np.array(sorted(side, key=lambda i: (distance[i], i)))
     d0, d1 = distance[near]
     pick = int(near[0])
     if away_from is not None and abs(d1 - d0) < cfg.ambiguity * max(d0 + d1, 1e-12):
@@ -217,10 +241,12 @@ def estimate_axes(
             axes.append(prismatic_axis(part_points[child], part_points[parent], cfg))
         else:
             grandchildren = tree.children(child)
-            away = (
-                np.concatenate([part_points[g] for g in grandchildren]).mean(axis=0)
+            handle = (
+                np.concatenate([part_points[g] for g in grandchildren])
                 if grandchildren
-                else None
+                else outermost_points(part_points[child], part_points[parent], cfg.protrusion)
             )
-            axes.append(revolute_axis(part_points[child], part_points[parent], cfg, away))
+            axes.append(
+                revolute_axis(part_points[child], part_points[parent], cfg, handle.mean(axis=0))
+            )
     return tree.with_axes(tuple(axes))

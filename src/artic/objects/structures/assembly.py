@@ -127,36 +127,27 @@ def assemble_tree(
     return ArticulatedObject(name=name, links=tuple(links), joints=tuple(joints), base_pose=pose)
 
 
-def moving_part_nodes(
-    part: MovingPart,
-    parent: int,
-    first_index: int,
-    parts: PartsConfig,
-    limits: tuple[float, float],
-    handle_name: str,
-) -> list[PartNode]:
+def moving_part_node(
+    part: MovingPart, parent: int, parts: PartsConfig, limits: tuple[float, float]
+) -> PartNode:
     """A door or drawer (`parts.vertical_door` / `parts.drawer`) hung on node `parent`,
-    and its handle on a fixed joint; `first_index` is the door/drawer's node index.
-    The part's origin is in the parent's link frame."""
+    its handle part of the same link (as PartNet-Mobility's links: one rigid body per
+    moving part; the handle's boxes moved to its mount, with the part's density). The
+    part's origin is in the parent's link frame."""
     density = parts.drawer_density if part.role == "drawer" else parts.door_density
-    return [
-        PartNode(
-            name=part.name,
-            role=part.role,
-            boxes=part.boxes,
-            density=density,
-            parent=parent,
-            joint_type=part.joint_type,
-            origin=part.origin,
-            axis=part.axis,
-            limits=limits,
-        ),
-        PartNode(
-            name=handle_name,
-            role="handle",
-            boxes=tuple(handle_boxes(part.handle, parts)),
-            density=parts.handle_density,
-            parent=first_index,
-            origin=part.handle.position,
-        ),
-    ]
+    mount = np.asarray(part.handle.position, dtype=np.float64)
+    handle = tuple(
+        Box(*((lo + m, hi + m) for (lo, hi), m in zip(box, mount, strict=True)))
+        for box in handle_boxes(part.handle, parts)
+    )
+    return PartNode(
+        name=part.name,
+        role=part.role,
+        boxes=(*part.boxes, *handle),
+        density=density,
+        parent=parent,
+        joint_type=part.joint_type,
+        origin=part.origin,
+        axis=part.axis,
+        limits=limits,
+    )

@@ -4,9 +4,10 @@ The body is a shell open at the front (as `parts.shell_boxes`), split into rows 
 to top) by horizontal shelves and each row into compartments by vertical dividers, all
 `panel_thickness` thick. Each compartment holds a drawer (prismatic), a door (revolute,
 hinge on either side), a double door (two doors hinged at the outer edges) or nothing
-(an open shelf). Every door and drawer carries a handle on a fixed joint. The number of
-rows, compartments and their contents vary per object, so the kinematic tree does too:
-body -> door/drawer -> handle, 1 to rows x columns x 2 movable parts.
+(an open shelf). Every door and drawer carries a handle, part of its link (as in
+PartNet-Mobility, whose links are the rigid moving parts). The number of rows,
+compartments and their contents vary per object, so the kinematic tree does too: body ->
+door/drawer, 1 to rows x columns x 2 movable parts.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from artic.objects.model import ArticulatedObject
 from artic.objects.parts import Box, drawer, shell_boxes, vertical_door
 from artic.objects.spec import Chirality, GeometryRanges, Range
-from artic.objects.structures.assembly import PartNode, assemble_tree, moving_part_nodes
+from artic.objects.structures.assembly import PartNode, assemble_tree, moving_part_node
 from artic.objects.structures.registry import StructureConfig, StructureSpec, register_structure
 
 Content = Literal["drawer", "door", "double_door", "empty"]
@@ -259,9 +260,8 @@ def _body_boxes(spec: StorageFurnitureSpec) -> list[Box]:
     "storage_furniture", StorageFurnitureConfig, StorageFurnitureSpec, sample_storage_furniture
 )
 def build_storage_furniture(spec: StorageFurnitureSpec) -> ArticulatedObject:
-    """Body, then per compartment (rows bottom to top, -y to +y) its door(s) or drawer,
-    each followed by its handle. Names: `door_<n>` / `drawer_<n>` and `handle_<n>`,
-    numbered in that order."""
+    """Body, then per compartment (rows bottom to top, -y to +y) its door(s) or drawer
+    (each with its handle). Names: `door_<n>` / `drawer_<n>`, numbered in that order."""
     p = spec.parts
     wall, gap, front = p.panel_thickness, p.gap, -spec.depth / 2
     nodes = [PartNode("body", "body", tuple(_body_boxes(spec)), p.body_density)]
@@ -294,6 +294,6 @@ def build_storage_furniture(spec: StorageFurnitureSpec) -> ArticulatedObject:
                 continue
             for part in moving:
                 limits = spec.drawer_limits if part.role == "drawer" else spec.door_limits
-                nodes += moving_part_nodes(part, 0, len(nodes), p, limits, f"handle_{n}")
+                nodes.append(moving_part_node(part, 0, p, limits))
                 n += 1
     return assemble_tree(f"storage_furniture_{spec.index}", nodes, p)
