@@ -1,4 +1,5 @@
-"""Point clouds on the surfaces of boxes: a three-part cabinet for the Chapter 4 tests.
+"""Point clouds on the surfaces of boxes for the Chapter 4 tests: one box (`box_surface`)
+and a three-part cabinet (`box_cloud`).
 
 A module (not a conftest fixture) so tests in several folders import one copy.
 """
@@ -27,3 +28,15 @@ def box_cloud(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
         u[np.arange(len(idx)), face] = np.sign(u[np.arange(len(idx)), face]) * 0.5
         points[idx] = np.asarray(centre) + u * np.asarray(size)
     return points.astype(np.float32), part.astype(np.int64)
+
+
+def box_surface(lo: list[float], hi: list[float], n: int, rng: np.random.Generator) -> np.ndarray:
+    """n points uniformly on the surface of the axis-aligned box [lo, hi] (metres)."""
+    lo_a, hi_a = np.asarray(lo, float), np.asarray(hi, float)
+    size = hi_a - lo_a
+    areas = np.array([size[1] * size[2], size[0] * size[2], size[0] * size[1]])
+    axis = rng.choice(3, size=n, p=areas / areas.sum())
+    points = lo_a + rng.random((n, 3)) * size
+    side = rng.integers(0, 2, size=n)
+    points[np.arange(n), axis] = np.where(side == 1, hi_a[axis], lo_a[axis])
+    return points

@@ -29,6 +29,7 @@ from artic.hierarchy.graph import (
 )
 from artic.hierarchy.tree import extract_tree
 from artic.hierarchy.types import JOINT_TYPE_OF_MOTION, KinematicTree, PartGraph
+from box_clouds import box_surface
 
 SMALL = GraphNetConfig(encoder_widths=(16, 32), decoder_points=32, hidden=32, head_hidden=32)
 
@@ -41,17 +42,6 @@ def one_thread() -> Iterator[None]:
         torch.manual_seed(0)
         yield
     torch.set_num_threads(threads)
-
-
-def box_surface(lo: list[float], hi: list[float], n: int, rng: np.random.Generator) -> np.ndarray:
-    lo_a, hi_a = np.asarray(lo, float), np.asarray(hi, float)
-    size = hi_a - lo_a
-    areas = np.array([size[1] * size[2], size[0] * size[2], size[0] * size[1]])
-    axis = rng.choice(3, size=n, p=areas / areas.sum())
-    points = lo_a + rng.random((n, 3)) * size
-    side = rng.integers(0, 2, size=n)
-    points[np.arange(n), axis] = np.where(side == 1, hi_a[axis], lo_a[axis])
-    return points
 
 
 def synthetic(index: int) -> tuple[PartGraph, KinematicTree]:

@@ -14,18 +14,7 @@ from artic.hierarchy.graph import (
     reverse_edge_features,
 )
 from artic.hierarchy.types import KinematicTree
-
-
-def box_surface(lo: list[float], hi: list[float], n: int, rng: np.random.Generator) -> np.ndarray:
-    """n points uniformly on the surface of the axis-aligned box [lo, hi] (metres)."""
-    lo_a, hi_a = np.asarray(lo, float), np.asarray(hi, float)
-    size = hi_a - lo_a
-    areas = np.array([size[1] * size[2], size[0] * size[2], size[0] * size[1]])
-    axis = rng.choice(3, size=n, p=areas / areas.sum())
-    points = lo_a + rng.random((n, 3)) * size
-    side = rng.integers(0, 2, size=n)
-    points[np.arange(n), axis] = np.where(side == 1, hi_a[axis], lo_a[axis])
-    return points
+from box_clouds import box_surface
 
 
 def three_boxes(rng: np.random.Generator, n: int = 400) -> tuple[np.ndarray, np.ndarray]:

@@ -13,17 +13,7 @@ from artic.hierarchy.joints import estimate_axes
 from artic.hierarchy.types import KinematicTree
 from artic.hierarchy.urdf import convex_hull_mesh, tree_to_urdf
 from artic.sim.bullet import connect_direct
-
-
-def box_surface(lo: list[float], hi: list[float], n: int, rng: np.random.Generator) -> np.ndarray:
-    lo_a, hi_a = np.asarray(lo, float), np.asarray(hi, float)
-    size = hi_a - lo_a
-    areas = np.array([size[1] * size[2], size[0] * size[2], size[0] * size[1]])
-    axis = rng.choice(3, size=n, p=areas / areas.sum())
-    points = lo_a + rng.random((n, 3)) * size
-    side = rng.integers(0, 2, size=n)
-    points[np.arange(n), axis] = np.where(side == 1, hi_a[axis], lo_a[axis])
-    return points
+from box_clouds import box_surface
 
 
 def cabinet(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, KinematicTree]:

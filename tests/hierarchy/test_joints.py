@@ -12,19 +12,9 @@ from artic.hierarchy.joints import (
     revolute_axis,
 )
 from artic.hierarchy.types import KinematicTree
+from box_clouds import box_surface
 
 HINGE = np.array([0.0, -0.28, 0.0])  # a point of the hinge line, which is vertical (+z)
-
-
-def box_surface(lo: list[float], hi: list[float], n: int, rng: np.random.Generator) -> np.ndarray:
-    lo_a, hi_a = np.asarray(lo, float), np.asarray(hi, float)
-    size = hi_a - lo_a
-    areas = np.array([size[1] * size[2], size[0] * size[2], size[0] * size[1]])
-    axis = rng.choice(3, size=n, p=areas / areas.sum())
-    points = lo_a + rng.random((n, 3)) * size
-    side = rng.integers(0, 2, size=n)
-    points[np.arange(n), axis] = np.where(side == 1, hi_a[axis], lo_a[axis])
-    return points
 
 
 def rot_z(angle: float) -> np.ndarray:
