@@ -70,19 +70,21 @@ class IcpBaseline:
         voxel_m: float = 0.02,
         max_distance_m: float = 0.1,
     ) -> None:
+        import open3d as o3d
+
         from artic.render.raycast import RaycastBackend
 
         columns = label_columns(template.dof)
         col = {c: i for i, c in enumerate(columns)}
         mean = train_labels.mean(axis=0)
         dims = {k: float(mean[col[k]]) for k in ("depth", "width", "height")}
+        xyz = {k: float(mean[col[f"pose_{k}"]]) for k in ("x", "y", "z")}
         q = np.array([mean[col[f"j{j}_q"]] for j in range(template.dof)])
         yaws = train_labels[:, col["pose_yaw"]]
         renderer = RaycastBackend(camera)
         self.columns = columns
         self.views: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
         for yaw in np.linspace(yaws.min(), yaws.max(), ICP_INITS):
-            xyz = {k: float(mean[col[f"pose_{k}"]]) for k in ("x", "y", "z")}
             pose = Pose(**xyz, yaw=float(yaw))
             spec = template.model_copy(update={**dims, "pose": pose, "chirality": 1})
             obj = build(spec)
@@ -91,7 +93,11 @@ class IcpBaseline:
                 self.views.append((view, np.array(list(image_labels(spec, obj, q).values()))))
         if not self.views:
             raise ValueError("ICP: the mean model is out of the camera's view in every pose")
-        self.labels = self.views[len(self.views) // 2][1]  # the pose nearest the mean yaw
+        self.labels = self.views[len(self.views) // 2][1]  # the middle pose: too few points
+        # the registration targets, built once
+        self._targets = [
+            o3d.geometry.PointCloud(o3d.utility.Vector3dVector(v)) for v, _ in self.views
+        ]
         self.camera, self.voxel, self.max_distance = camera, voxel_m, max_distance_m
 
     def predict(self, depth: NDArray[np.float32]) -> NDArray[np.float64]:
@@ -104,10 +110,9 @@ class IcpBaseline:
             return self.labels.copy()
         cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
         best: tuple[tuple[float, float], NDArray[np.float64], NDArray[np.float64]] | None = None
-        for view, labels in self.views:
+        for (view, labels), target in zip(self.views, self._targets, strict=True):
             # observed -> model view, starting from the centroids' offset
             init = make_transform(translation=view.mean(axis=0) - points.mean(axis=0))
-            target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(view))
             fit = reg.registration_icp(
                 cloud, target, self.max_distance, init,
                 reg.TransformationEstimationPointToPoint(),
