@@ -167,15 +167,17 @@ def _e2e_child(objects: int, tmp: Path) -> None:
 
 
 def network_benchmark(tmp: Path) -> list[dict[str, object]]:
-    """The Chapter 3 MDN on this CPU: training images/s (batch 64, Adam step), forward
-    latency at batch 1 (median of 30) and throughput at batch 64, and the wall time of a
-    whole `artic predict` process (imports, model loading, one image)."""
+    """The Chapter 3 MDN on this CPU, per crop size and width: training images/s (batch
+    64: crop, forward, Adam step), latency at batch 1 (crop + forward, median of 30) and
+    throughput at batch 64, and the wall time of a whole `artic predict` process
+    (imports, model loading, one image)."""
     import torch
 
     from artic.artifacts.model_file import save_model_file
     from artic.cli.stage_runner import available_cpus
     from artic.geometry.camera import CameraIntrinsics
     from artic.kinematics.mdn import KinematicsMDN, mdn_nll
+    from artic.kinematics.preprocess import InputPipeline
     from artic.kinematics.targets import TargetCodec
     from artic.objects.labels import label_columns
 
@@ -184,16 +186,23 @@ def network_benchmark(tmp: Path) -> list[dict[str, object]]:
     columns = label_columns(1)
     codec = TargetCodec.fit(columns, np.random.default_rng(0).normal(size=(100, len(columns))))
     results = []
-    for width in (64, 32):
+    rng = np.random.default_rng(0)
+    depth = np.zeros((64, 128, 128), np.float32)
+    for k in range(64):  # boxes of 30-90 px at 1-3 m
+        r, c, size = *rng.integers(0, 60, 2), rng.integers(30, 90)
+        depth[k, r : r + size, c : c + size] = rng.uniform(1, 3)
+    for size, width in ((128, 64), (64, 64), (64, 32)):
         torch.manual_seed(0)
-        model = KinematicsMDN(codec.dim, 20, width).to(memory_format=torch.channels_last)
+        model = KinematicsMDN(codec.dim, 20, width, input_size=size)
+        model = model.to(memory_format=torch.channels_last)
+        pipeline = InputPipeline(cam, size)
         opt = torch.optim.Adam(model.parameters(), 1e-3)
-        x = torch.rand(64, 1, 128, 128).to(memory_format=torch.channels_last)
         y = torch.randn(64, codec.dim)
         times = []
         for _ in range(6):
             t0 = time.perf_counter()
-            loss = mdn_nll(model(x), y)
+            x = pipeline(depth).to(torch.device("cpu"), channels_last=True)
+            loss = mdn_nll(model(*x), y)
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -201,24 +210,22 @@ def network_benchmark(tmp: Path) -> list[dict[str, object]]:
         model.eval()
         with torch.no_grad():
             for _ in range(3):
-                model(x[:1])
+                model(*pipeline(depth[:1]))
             single = []
             for _ in range(30):
                 t0 = time.perf_counter()
-                model(x[:1])
+                model(*pipeline(depth[:1]))
                 single.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
-            model(x)
+            model(*pipeline(depth))
             batch = 64 / (time.perf_counter() - t0)
-        path = tmp / f"mdn-{width}.pt"
+        path = tmp / f"mdn-{size}-{width}.pt"
         meta = {"codec": codec.to_dict(), "camera": cam.model_dump(), "dof": 1,
                 "joint_type": "revolute"}  # fmt: skip
         save_model_file(
             path, "kinematics-mdn", "microwave", model.hparams, model.state_dict(), meta
         )
-        depth = np.zeros((128, 128), np.float32)
-        depth[40:90, 30:100] = 2.0
-        np.save(tmp / "depth.npy", depth)
+        np.save(tmp / "depth.npy", depth[0])
         (tmp / "camera.json").write_text(cam.model_dump_json())
         walls = []
         for _ in range(3):
@@ -230,7 +237,7 @@ def network_benchmark(tmp: Path) -> list[dict[str, object]]:
             )  # fmt: skip
             walls.append(time.perf_counter() - t0)
         results.append({
-            "input": "128x128", "width": width,
+            "input": f"{size}x{size} crop", "width": width,
             "train_images_per_s": round(64 / statistics.median(times[1:]), 1),
             "forward_batch1_ms": round(1000 * statistics.median(single), 2),
             "forward_batch64_images_per_s": round(batch, 1),

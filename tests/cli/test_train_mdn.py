@@ -166,6 +166,12 @@ def test_predict_refuses_unknown_category_missing_and_foreign_models(tiny_model,
     save_model_file(tmp_path / "other.pt", "point-segmenter", "microwave", {}, {}, {})
     with pytest.raises(InputError, match="a point-segmenter model, not a kinematics-mdn model"):
         load_model_file(tmp_path / "other.pt", KIND, "microwave")
+    # an MDN from before the object crop (its hparams have no input_size)
+    payload = load_model_file(tiny_model / "model.pt", KIND, "microwave")
+    old = {k: v for k, v in payload["hparams"].items() if k not in ("input_size", "side_features")}
+    save_model_file(tmp_path / "old.pt", KIND, "microwave", old, {}, payload["meta"])
+    code, _, err = run_cli(*base, "--category", "microwave", "--model", str(tmp_path / "old.pt"))
+    assert code == 2 and "reads the whole image" in err and "retrain it" in err
 
 
 def test_evaluate_mdn_writes_table_3_1_and_calibration(tiny_model, tiny_depth, tmp_path):

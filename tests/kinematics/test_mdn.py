@@ -18,6 +18,7 @@ from artic.kinematics.mdn import (
     most_likely,
     sample,
 )
+from artic.kinematics.preprocess import SIDE_FEATURES
 from artic.kinematics.resnet import ResNet18
 
 Z95 = 1.6448536269514722  # standard normal 0.95 quantile
@@ -237,17 +238,20 @@ def test_kinematics_mdn_hparams_rebuild_the_model():
         "width": 8,
         "in_channels": 1,
         "sigma_floor": 1e-3,
+        "side_features": SIDE_FEATURES,
+        "input_size": 64,
     }
 
 
 def overfit_losses(steps: int = 150) -> list[float]:
     torch.manual_seed(0)
     x, y = torch.rand(8, 1, 32, 32), torch.randn(8, 3)
-    model = KinematicsMDN(out_dim=3, components=5, width=8)
+    side = torch.randn(8, SIDE_FEATURES)
+    model = KinematicsMDN(out_dim=3, components=5, width=8, input_size=32)
     optimizer = torch.optim.Adam(model.parameters(), lr=1e-3)
     losses = []
     for _ in range(steps):
-        loss = mdn_nll(model(x), y)
+        loss = mdn_nll(model(x, side), y)
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()

@@ -39,6 +39,7 @@ class ModelConfig(Strict):
     components: int = Field(20, gt=0, description="mixture components m")
     width: int = Field(64, gt=0, description="ResNet-18 first-stage channels")
     sigma_floor: float = Field(1e-3, gt=0, description="lower bound of each std")
+    input_size: int = Field(64, ge=32, description="side of the object crop, pixels")
 
 
 class TrainConfig(Strict):
@@ -71,8 +72,10 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     import torch
 
     from artic.artifacts.model_file import save_model_file
+    from artic.geometry.camera import CameraIntrinsics
     from artic.kinematics.data import load_split
     from artic.kinematics.mdn import KinematicsMDN
+    from artic.kinematics.preprocess import InputPipeline
     from artic.kinematics.targets import TargetCodec
     from artic.kinematics.train import FitConfig, FitState, fit
 
@@ -90,7 +93,10 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     codec = TargetCodec.fit(ds.label_columns, train.labels)
     torch.manual_seed(cfg.seed)
     m = cfg.model
-    model = KinematicsMDN(codec.dim, m.components, m.width, 1, m.sigma_floor).to(device)
+    model = KinematicsMDN(
+        codec.dim, m.components, m.width, sigma_floor=m.sigma_floor, input_size=m.input_size
+    ).to(device)
+    pipeline = InputPipeline(CameraIntrinsics.model_validate(ds.info["camera"]), m.input_size)
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     resume = WorkDir(Path(cfg.out)).resume_dir("train-mdn") / "last.pt"
     state = FitState()
@@ -109,7 +115,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
         t.epochs, t.batch_size, t.lr, t.weight_decay, t.patience, t.augment_dropout,
         cfg.seed, t.channels_last,
     )  # fmt: skip
-    state = fit(model, optimizer, train, val, codec, fit_cfg, state, device, checkpoint)
+    state = fit(model, optimizer, train, val, codec, pipeline, fit_cfg, state, device, checkpoint)
     assert state.best_weights is not None
     meta = {
         "codec": codec.to_dict(),

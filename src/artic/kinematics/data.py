@@ -13,11 +13,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import torch
 from numpy.typing import NDArray
 
 from artic.artifacts.depth_dataset import DepthDataset, decode_depth
-from artic.kinematics.preprocess import network_input
 
 Split = Literal["train", "val", "test"]
 
@@ -38,10 +36,6 @@ class DepthSplit:
 
     def __len__(self) -> int:
         return len(self.labels)
-
-    def inputs(self, index: NDArray[np.int64] | slice) -> torch.Tensor:
-        """Network inputs (n, 1, H, W) of the images at `index`."""
-        return network_input(decode_depth(self.depth[index]))
 
     def depth_m(self, index: NDArray[np.int64] | slice) -> NDArray[np.float32]:
         return decode_depth(self.depth[index])

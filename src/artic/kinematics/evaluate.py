@@ -14,6 +14,7 @@ from artic.kinematics.baselines import IcpBaseline, mean_baseline, nearest_neigh
 from artic.kinematics.data import DepthSplit
 from artic.kinematics.mdn import marginal_interval, most_likely
 from artic.kinematics.predict import Predictor
+from artic.kinematics.preprocess import full_image
 
 #: nominal levels of the calibration curve
 CURVE_LEVELS = tuple(round(0.05 * k, 2) for k in range(1, 20))
@@ -40,20 +41,24 @@ def evaluate(
     all_levels = tuple(sorted(set(levels) | set(CURVE_LEVELS)))
     inside = {lv: np.zeros(len(codec.columns)) for lv in all_levels}
     ours, test_features = [], []
+    inputs = predictor.inputs
     with torch.no_grad():
         for start in range(0, len(test), batch_size):
             index = slice(start, start + batch_size)
-            x = test.inputs(index)
-            mix = predictor.model(x)
+            depth = test.depth_m(index)
+            mix = predictor.model(*inputs(depth))
             ours.append(codec.decode(most_likely(mix).numpy()))
             truth = test.labels[index]
             for lv in all_levels:
                 lo, hi = marginal_interval(mix, lv)
                 c = coverage(codec.decode(lo.numpy()), codec.decode(hi.numpy()), truth)
                 inside[lv] += c * len(truth)
-            test_features.append(nn_features(x))
+            test_features.append(nn_features(full_image(depth)))
         train_features = torch.cat(
-            [nn_features(train.inputs(slice(s, s + 1024))) for s in range(0, len(train), 1024)]
+            [
+                nn_features(full_image(train.depth_m(slice(s, s + 1024))))
+                for s in range(0, len(train), 1024)
+            ]
         )
     queries = torch.cat(test_features)
     nn = np.concatenate([

@@ -1,9 +1,10 @@
 """Mixture density network of section 3.2 and the operations on its output mixture.
 
 Eq. 3.1: p(y | x) = sum_i pi_i(x) N(y | mu_i(x), diag(sigma_i(x)^2)), i = 1..m, with a
-ResNet-18 backbone and one fully connected head for each of pi, mu and sigma. It is
-trained by the negative log-likelihood (Eq. 3.2, `mdn_nll`). All quantities are in the
-units of the standardised targets (zero mean, unit variance per column; see targets.py).
+ResNet-18 backbone on an object-centred crop (preprocess.py) and one fully connected
+head for each of pi, mu and sigma. It is trained by the negative log-likelihood
+(Eq. 3.2, `mdn_nll`). All quantities are in the units of the standardised targets (zero
+mean, unit variance per column; see targets.py).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from artic.kinematics.preprocess import SIDE_FEATURES
 from artic.kinematics.resnet import ResNet18
 
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -22,6 +24,8 @@ _LOG_2PI = math.log(2.0 * math.pi)
 _SIGMA_BIAS = math.log(math.e - 1.0)
 #: standard deviation of the head weights, times 1 / sqrt(in_features)
 _HEAD_WEIGHT_STD = 0.1
+#: width of the layer that embeds the crop's position
+_SIDE_HIDDEN = 64
 
 Reduction = Literal["mean", "sum", "none"]
 
@@ -67,7 +71,12 @@ class MDNHead(nn.Module):
 
 
 class KinematicsMDN(nn.Module):
-    """Depth image (B, C, H, W) -> Mixture over the D standardised targets."""
+    """Object crop (B, C, S, S) and where it is (B, K) -> Mixture over the D targets.
+
+    The crop goes through the ResNet-18; the crop's position (preprocess.py) through one
+    linear layer with ReLU; the heads read both, and the raw position vector, so a
+    camera-frame quantity can be the crop's content plus where the crop is.
+    """
 
     def __init__(
         self,
@@ -76,6 +85,8 @@ class KinematicsMDN(nn.Module):
         width: int = 64,
         in_channels: int = 1,
         sigma_floor: float = 1e-3,
+        side_features: int = SIDE_FEATURES,
+        input_size: int = 64,
     ) -> None:
         super().__init__()
         self.hparams: dict[str, Any] = {
@@ -84,13 +95,18 @@ class KinematicsMDN(nn.Module):
             "width": width,
             "in_channels": in_channels,
             "sigma_floor": sigma_floor,
+            "side_features": side_features,
+            "input_size": input_size,
         }
         self.backbone = ResNet18(in_channels, width)
-        self.head = MDNHead(self.backbone.out_features, out_dim, components, sigma_floor)
+        self.side = nn.Sequential(nn.Linear(side_features, _SIDE_HIDDEN), nn.ReLU())
+        features = self.backbone.out_features + _SIDE_HIDDEN + side_features
+        self.head = MDNHead(features, out_dim, components, sigma_floor)
 
-    def forward(self, depth: Tensor) -> Mixture:
-        """(B, C, H, W) network input -> Mixture (B, m, D)."""
-        mix: Mixture = self.head(self.backbone(depth))
+    def forward(self, image: Tensor, side: Tensor) -> Mixture:
+        """(B, C, S, S) crops and (B, K) crop positions -> Mixture (B, m, D)."""
+        features = torch.cat([self.backbone(image), self.side(side), side], dim=1)
+        mix: Mixture = self.head(features)
         return mix
 
 

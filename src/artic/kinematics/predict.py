@@ -18,9 +18,10 @@ import numpy as np
 import torch
 from numpy.typing import NDArray
 
+from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics.mdn import KinematicsMDN, Mixture, most_likely, sample
-from artic.kinematics.preprocess import network_input
+from artic.kinematics.preprocess import InputPipeline
 from artic.kinematics.targets import TargetCodec
 
 Estimator = Literal["most-likely", "max-point"]
@@ -39,6 +40,12 @@ class Predictor:
     def from_payload(cls, payload: dict[str, Any]) -> Predictor:
         """From `artifacts.model_file.load_model_file(..., kind="kinematics-mdn")`."""
         meta = payload["meta"]
+        if "input_size" not in payload["hparams"]:
+            raise InputError(
+                f"MDN of {payload['category']} from artic {payload.get('artic_version')} reads "
+                "the whole image; this artic's MDN reads an object crop: retrain it "
+                "(artic train-mdn)"
+            )
         model = KinematicsMDN(**payload["hparams"])
         model.load_state_dict(payload["state_dict"])
         model.eval()
@@ -51,12 +58,17 @@ class Predictor:
             str(meta["joint_type"]),
         )
 
+    @property
+    def inputs(self) -> InputPipeline:
+        """The preprocessing the model was trained with (preprocess.py)."""
+        return InputPipeline(self.camera, int(self.model.hparams["input_size"]))
+
     @torch.no_grad()
     def mixture(
         self, depth: NDArray[np.floating], mask: NDArray[np.bool_] | None = None
     ) -> Mixture:
         """The network's mixture (standardised units) for (N, H, W) or (H, W) depth."""
-        mix: Mixture = self.model(network_input(depth, mask))
+        mix: Mixture = self.model(*self.inputs(depth, mask))
         return mix
 
     def estimate(

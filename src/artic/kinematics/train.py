@@ -19,7 +19,7 @@ import torch
 
 from artic.kinematics.data import DepthSplit
 from artic.kinematics.mdn import KinematicsMDN, mdn_nll
-from artic.kinematics.preprocess import augment
+from artic.kinematics.preprocess import InputPipeline, augment
 from artic.kinematics.targets import TargetCodec
 from artic.learning.fit_state import FitState
 
@@ -45,6 +45,7 @@ def fit(
     train: DepthSplit,
     val: DepthSplit,
     codec: TargetCodec,
+    inputs: InputPipeline,
     cfg: FitConfig,
     state: FitState,
     device: torch.device,
@@ -58,8 +59,8 @@ def fit(
     y_train = torch.from_numpy(codec.encode(train.labels))
     while state.epoch < cfg.epochs and not state.stopped_early:
         t0 = time.perf_counter()
-        train_nll = _train_epoch(model, optimizer, train, y_train, cfg, state.epoch, device)
-        val_nll = evaluate_nll(model, val, codec, cfg.batch_size, device, cfg.channels_last)
+        train_nll = _train_epoch(model, optimizer, train, y_train, inputs, cfg, state.epoch, device)
+        val_nll = evaluate_nll(model, val, codec, inputs, cfg.batch_size, device, cfg.channels_last)
         state.end_epoch(val_nll, model, cfg.patience)
         seconds = time.perf_counter() - t0
         lr = float(optimizer.param_groups[0]["lr"])
@@ -82,6 +83,7 @@ def _train_epoch(
     optimizer: torch.optim.Optimizer,
     data: DepthSplit,
     targets: torch.Tensor,
+    inputs: InputPipeline,
     cfg: FitConfig,
     epoch: int,
     device: torch.device,
@@ -94,9 +96,9 @@ def _train_epoch(
         index = np.sort(order[start : start + cfg.batch_size])
         if len(index) < 2:
             continue  # BatchNorm needs two images per batch in training mode
-        x = _to_device(data.inputs(index), device, cfg.channels_last)
+        x = inputs(data.depth_m(index)).to(device, cfg.channels_last)
         x = augment(x, cfg.augment_dropout, generator)
-        loss = mdn_nll(model(x), targets[index].to(device))
+        loss = mdn_nll(model(*x), targets[index].to(device))
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
@@ -113,6 +115,7 @@ def evaluate_nll(
     model: KinematicsMDN,
     data: DepthSplit,
     codec: TargetCodec,
+    inputs: InputPipeline,
     batch_size: int,
     device: torch.device,
     channels_last: bool = True,
@@ -123,11 +126,6 @@ def evaluate_nll(
     total = 0.0
     for start in range(0, len(data), batch_size):
         index = slice(start, start + batch_size)
-        x = _to_device(data.inputs(index), device, channels_last)
-        total += float(mdn_nll(model(x), y[index].to(device), reduction="sum"))
+        x = inputs(data.depth_m(index)).to(device, channels_last)
+        total += float(mdn_nll(model(*x), y[index].to(device), reduction="sum"))
     return total / max(len(data), 1)
-
-
-def _to_device(x: torch.Tensor, device: torch.device, channels_last: bool) -> torch.Tensor:
-    memory = torch.channels_last if channels_last else torch.contiguous_format
-    return x.to(device=device, memory_format=memory)
