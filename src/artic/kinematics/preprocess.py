@@ -111,10 +111,9 @@ class InputPipeline:
             *RELATIVE_RANGE
         )
         image = torch.where(crop > 0, relative, torch.zeros_like(crop))
-        u = torch.arange(w, dtype=torch.float32)
-        v = torch.arange(h, dtype=torch.float32)
-        y = (z * (-(u - cam.cx) / cam.fx)[None, None, :]).sum((1, 2)) / count
-        up = (z * (-(v - cam.cy) / cam.fy)[None, :, None]).sum((1, 2)) / count
+        rays = torch.from_numpy(cam.ray_directions())  # depth * ray = the pixel's point
+        y = (z * rays[..., 1]).sum((1, 2)) / count
+        up = (z * rays[..., 2]).sum((1, 2)) / count
         side = torch.stack(
             [
                 mean, y, up,
