@@ -78,7 +78,16 @@ class Predictor:
         estimator: Estimator = "most-likely",
     ) -> NDArray[np.float64]:
         """(L,) label vector for one (H, W) image in the training camera."""
-        mix = self.mixture(depth, mask)
+        return self._estimate(self.mixture(depth, mask), depth, mask, estimator)
+
+    def _estimate(
+        self,
+        mix: Mixture,
+        depth: NDArray[np.floating],
+        mask: NDArray[np.bool_] | None,
+        estimator: Estimator,
+    ) -> NDArray[np.float64]:
+        """`estimate` from the image's mixture (`mixture(depth, mask)`)."""
         label = self.codec.decode(most_likely(mix).numpy())[0]
         if estimator == "max-point":
             points = self.camera.back_project(
@@ -116,7 +125,8 @@ class Predictor:
         seed: int = 0,
     ) -> dict[str, Any]:
         """The JSON `artic predict` prints (see docs/kinematics.md)."""
-        label = self.estimate(depth, mask, estimator)
+        mix = self.mixture(depth, mask)
+        label = self._estimate(mix, depth, mask, estimator)
         col = {c: i for i, c in enumerate(self.codec.columns)}
         unit = "rad" if self.joint_type == "revolute" else "m"
         joints = []
@@ -130,7 +140,6 @@ class Predictor:
                 "configuration_unit": unit,
                 "part_origin_in_axis_frame": [label[col[f"j{j}_part_{a}"]] for a in "xyz"],
             })  # fmt: skip
-        mix = self.mixture(depth, mask)
         out: dict[str, Any] = {
             "category": self.category,
             "frame": "camera body frame: x forward, y left, z up; metres, radians",
