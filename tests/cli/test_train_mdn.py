@@ -32,6 +32,8 @@ def test_train_mdn_writes_model_metrics_and_card(tiny_model):
         assert (tiny_model / name).is_file(), name
     rows = (tiny_model / "metrics.csv").read_text().splitlines()
     assert rows[0] == "epoch,train_nll,val_nll,seconds,lr" and len(rows) == 3
+    lr = [float(row.split(",")[-1]) for row in rows[1:]]
+    assert lr[0] > lr[1] > 0, "cosine schedule (conf/train_mdn: train.schedule)"
     payload = load_model_file(tiny_model / "model.pt", KIND, "microwave")
     assert payload["hparams"]["width"] == 8 and payload["meta"]["dof"] == 1
     assert np.isfinite(payload["meta"]["best_val_nll"])

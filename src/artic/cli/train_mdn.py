@@ -46,6 +46,8 @@ class TrainConfig(Strict):
     epochs: int = Field(40, gt=0)
     batch_size: int = Field(64, gt=0)
     lr: float = Field(1e-3, gt=0)
+    schedule: Literal["constant", "cosine"] = "cosine"
+    min_lr_ratio: float = Field(0.01, ge=0, le=1, description="cosine's final lr / lr")
     weight_decay: float = Field(0.0, ge=0)
     patience: int = Field(5, gt=0)
     augment_dropout: float = Field(0.1, ge=0, lt=1)
@@ -113,7 +115,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
 
     fit_cfg = FitConfig(
         t.epochs, t.batch_size, t.lr, t.weight_decay, t.patience, t.augment_dropout,
-        cfg.seed, t.channels_last,
+        cfg.seed, t.channels_last, schedule=t.schedule, min_lr_ratio=t.min_lr_ratio,
     )  # fmt: skip
     state = fit(model, optimizer, train, val, codec, pipeline, fit_cfg, state, device, checkpoint)
     assert state.best_weights is not None

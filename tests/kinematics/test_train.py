@@ -1,0 +1,29 @@
+"""The learning-rate schedule of MDN training."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from artic.kinematics.train import FitConfig, learning_rate
+
+
+def _cfg(schedule: str, epochs: int = 10) -> FitConfig:
+    return FitConfig(epochs, 64, 1e-3, 0.0, 3, 0.1, 0, schedule=schedule, min_lr_ratio=0.01)  # type: ignore[arg-type]
+
+
+def test_constant_schedule_keeps_the_learning_rate():
+    cfg = _cfg("constant")
+    assert {learning_rate(cfg, p) for p in np.linspace(0, 12, 50)} == {1e-3}
+
+
+def test_cosine_schedule_decays_from_lr_to_the_floor_monotonically():
+    cfg = _cfg("cosine")
+    rates = [learning_rate(cfg, p) for p in np.linspace(0, 10, 101)]
+    assert rates[0] == pytest.approx(1e-3) and rates[-1] == pytest.approx(1e-5)
+    assert all(a > b for a, b in zip(rates, rates[1:], strict=False))
+    assert learning_rate(cfg, 5.0) == pytest.approx(0.5 * (1e-3 + 1e-5))
+    assert learning_rate(cfg, 14.0) == pytest.approx(1e-5), "past the budget: the floor"
+    assert math.isclose(learning_rate(cfg, 2.5), learning_rate(_cfg("cosine", 20), 5.0))
