@@ -43,7 +43,7 @@ class FitConfig:
     seed: int
     channels_last: bool = True
     log_every_s: float = 30.0
-    schedule: Literal["constant", "cosine"] = "constant"
+    schedule: Literal["constant", "cosine"] = "cosine"  # as conf/train_mdn (train.schedule)
     min_lr_ratio: float = 0.01
 
 
