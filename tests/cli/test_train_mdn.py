@@ -137,6 +137,29 @@ def test_predict_reprojects_another_camera_and_max_point(tiny_model, image, tmp_
     assert origin[0] > 0.3, "max-point picks a point of the observed cloud"
 
 
+def test_predict_estimators_are_the_mixture_points_they_name(tiny_model, image):
+    _, npy, camera = image
+    base = [
+        "predict", str(npy), "--category", "microwave", "--camera", str(camera),
+        "--model", str(tiny_model / "model.pt"),
+    ]  # fmt: skip
+    results = {}
+    for estimator in ("most-likely", "densest"):
+        code, out, err = run_cli(*base, "--estimator", estimator)
+        assert code == 0, err
+        results[estimator] = json.loads(out)
+    mixture = results["densest"]["mixture"]
+    assert mixture == results["most-likely"]["mixture"]
+    means = np.array(mixture["means"])  # (m, L) in mixture["columns"] order
+    heaviest = means[int(np.argmax(mixture["weights"]))]
+    estimate = results["most-likely"]["estimate"]
+    assert [estimate[c] for c in mixture["columns"]] == pytest.approx(heaviest.tolist(), abs=1e-5)
+    densest = [results["densest"]["estimate"][c] for c in mixture["columns"]]
+    assert np.abs(means - np.array(densest)).max(axis=1).min() < 1e-5, "a component mean"
+    code, _, err = run_cli(*base, "--estimator", "mode")
+    assert code == 2 and "--estimator: 'mode' (available: most-likely, densest, max-point)" in err
+
+
 @pytest.mark.parametrize(
     ("make", "message"),
     [
@@ -184,12 +207,12 @@ def test_evaluate_mdn_writes_table_3_1_and_calibration(tiny_model, tiny_depth, t
     )  # fmt: skip
     assert code == 0, err
     report = (out / "report.md").read_text()
-    for method in ("Mean", "NN", "ICP", "Ours"):
+    for method in ("Mean", "NN", "ICP", "Ours", "Ours (densest)"):
         assert f"| {method} |" in report
     assert "| 90% |" in report
     summary = (out / "summary.csv").read_text().splitlines()
     assert summary[0].startswith("method,images,position_cm_mean")
-    assert len(summary) == 5
+    assert len(summary) == 6
     mean_row = dict(zip(summary[0].split(","), summary[1].split(","), strict=True))
     assert float(mean_row["position_cm_mean"]) > 0
     calibration = (out / "calibration.csv").read_text().splitlines()

@@ -11,6 +11,7 @@ from artic.kinematics.mdn import (
     KinematicsMDN,
     MDNHead,
     Mixture,
+    densest,
     marginal_cdf,
     marginal_interval,
     mdn_nll,
@@ -136,17 +137,20 @@ def test_mixture_log_prob_of_several_points_matches_nll():
 # --- estimators and sampling ---
 
 
-def test_most_likely_picks_the_mean_of_the_densest_component():
+def test_most_likely_is_the_mean_of_the_heaviest_component_and_densest_of_the_densest():
     mix = mixture_of([0.1, 0.6, 0.3], [[-10.0, 0.0], [0.0, 5.0], [10.0, -5.0]], [[1.0, 1.0]] * 3)
     torch.testing.assert_close(most_likely(mix), torch.tensor([[0.0, 5.0]]))
-    # density, not weight: a heavy but broad component loses to a light narrow one
+    torch.testing.assert_close(densest(mix), torch.tensor([[0.0, 5.0]]))
+    # weight against density: a heavy broad component and a light narrow one disagree
     mix = mixture_of([0.7, 0.3], [[0.0], [20.0]], [[10.0], [0.5]])
-    torch.testing.assert_close(most_likely(mix), torch.tensor([[20.0]]))
+    torch.testing.assert_close(most_likely(mix), torch.tensor([[0.0]]))
+    torch.testing.assert_close(densest(mix), torch.tensor([[20.0]]))
 
 
-def test_most_likely_of_a_single_component_is_its_mean():
+def test_estimators_of_a_single_component_are_its_mean():
     mix = random_mixture(5, 1, 4, seed=6)
     torch.testing.assert_close(most_likely(mix), mix.mu[:, 0])
+    torch.testing.assert_close(densest(mix), mix.mu[:, 0])
 
 
 def test_sample_shape_and_reproducibility():

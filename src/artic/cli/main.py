@@ -275,7 +275,9 @@ def predict(
     ),
     samples: int = typer.Option(0, "--samples", min=0, help="draws from the predicted mixture"),
     estimator: str = typer.Option(
-        "most-likely", "--estimator", help="most-likely (3.3.1) | max-point (Table 3.2)"
+        "most-likely",
+        "--estimator",
+        help="most-likely (3.3.1: largest-weight component) | densest | max-point (Table 3.2)",
     ),
     model: Path | None = typer.Option(
         None, "--model", help="model.pt (default: artifacts/models/mdn/CATEGORY/model.pt)"
@@ -290,9 +292,10 @@ def predict(
 
     from artic.cli.predict import predict as run
     from artic.errors import InputError
+    from artic.kinematics.predict import ESTIMATORS
 
-    if estimator not in ("most-likely", "max-point"):
-        raise InputError(f"--estimator: '{estimator}' (available: most-likely, max-point)")
+    if estimator not in ESTIMATORS:
+        raise InputError(f"--estimator: '{estimator}' (available: {', '.join(ESTIMATORS)})")
     result = run(image, category, camera, model, mask, samples, estimator, seed)
     typer.echo(json.dumps(result, indent=2))
 

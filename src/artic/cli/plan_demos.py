@@ -80,8 +80,9 @@ class ModelConfig(Strict):
         description="predicted: a train-mdn output folder of the task's object category; "
         "null: <artifacts_root>/models/mdn/<category>",
     )
-    estimator: Literal["most-likely", "max-point"] = Field(
-        "most-likely", description="predicted: the MDN's estimator (section 3.3.1 / 3.3.2)"
+    estimator: Literal["most-likely", "densest", "max-point"] = Field(
+        "most-likely",
+        description="predicted: the MDN's estimator (section 3.3.1 / 3.3.2; kinematics/predict.py)",
     )
     camera: CameraConfig = Field(default_factory=CameraConfig, description="predicted: view")
     noise: SensorNoiseConfig = Field(

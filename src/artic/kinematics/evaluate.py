@@ -1,5 +1,6 @@
-"""Section 3.3.1 evaluation: Ours (most-likely estimate) and the three baselines on the
-test images, per-image errors, and the calibration of the MDN's intervals."""
+"""Section 3.3.1 evaluation: Ours (most-likely estimate), Ours with the `densest`
+estimator, and the three baselines on the test images, per-image errors, and the
+calibration of the MDN's intervals."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from numpy.typing import NDArray
 from artic.evaluation.kinematics import coverage, kinematic_errors
 from artic.kinematics.baselines import IcpBaseline, mean_baseline, nearest_neighbour, nn_features
 from artic.kinematics.data import DepthSplit
-from artic.kinematics.mdn import marginal_interval, most_likely
+from artic.kinematics.mdn import densest, marginal_interval, most_likely
 from artic.kinematics.predict import Predictor
 from artic.kinematics.preprocess import full_image
 
@@ -40,7 +41,7 @@ def evaluate(
     codec = predictor.codec
     all_levels = tuple(sorted(set(levels) | set(CURVE_LEVELS)))
     inside = {lv: np.zeros(len(codec.columns)) for lv in all_levels}
-    ours, test_features = [], []
+    ours, ours_densest, test_features = [], [], []
     inputs = predictor.inputs
     with torch.no_grad():
         for start in range(0, len(test), batch_size):
@@ -48,6 +49,7 @@ def evaluate(
             depth = test.depth_m(index)
             mix = predictor.model(*inputs(depth))
             ours.append(codec.decode(most_likely(mix).numpy()))
+            ours_densest.append(codec.decode(densest(mix).numpy()))
             truth = test.labels[index]
             for lv in all_levels:
                 lo, hi = marginal_interval(mix, lv)
@@ -69,6 +71,7 @@ def evaluate(
         "Mean": mean_baseline(train.labels, len(test)),
         "NN": nn,
         "Ours": np.concatenate(ours),
+        "Ours (densest)": np.concatenate(ours_densest),
     }
     if icp is not None and icp_images > 0:
         n = min(icp_images, len(test))

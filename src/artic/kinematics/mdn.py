@@ -130,7 +130,17 @@ def mdn_nll(mix: Mixture, y: Tensor, reduction: Reduction = "mean") -> Tensor:
 
 
 def most_likely(mix: Mixture) -> Tensor:
-    """The component mean with the highest mixture density (section 3.3.1): (B, D)."""
+    """The thesis' "maximum likelihood sample" (section 3.3.1): the mean of the component
+    with the largest mixing weight pi_i, the most likely component (B, D). This is the
+    estimate the thesis' evaluation code reports (docs/kinematics.md)."""
+    best = mix.log_pi.argmax(dim=-1)  # (B,)
+    return mix.mu[torch.arange(len(best), device=best.device), best]
+
+
+def densest(mix: Mixture) -> Tensor:
+    """The component mean with the highest mixture density, p(mu_i) (B, D): the mixture's
+    mode when the components are well separated. In many label dimensions a narrow
+    component of small weight wins (docs/kinematics.md has the measured comparison)."""
     best = mixture_log_prob(mix, mix.mu).argmax(dim=-1)  # (B,)
     return mix.mu[torch.arange(len(best), device=best.device), best]
 

@@ -2,8 +2,11 @@
 
 `Predictor` wraps a trained MDN (`model.pt` of `artic train-mdn`): depth in the
 training camera -> mixture over the label columns (docs/formats.md) -> an estimate.
-Estimators:
-- `most-likely` (section 3.3.1): the component mean with the highest mixture density;
+Estimators (`ESTIMATORS`):
+- `most-likely` (section 3.3.1, the thesis' "maximum likelihood sample"): the mean of
+  the component with the largest mixing weight;
+- `densest`: the component mean with the highest mixture density (an approximation to
+  the mixture's mode; worse on every Table 3.1 error, docs/kinematics.md);
 - `max-point` (section 3.3.2, Table 3.2): as most-likely, but each joint's axis origin
   is the point of the observed cloud with the highest density under the model's
   marginal over that origin.
@@ -12,7 +15,7 @@ Estimators:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 import torch
@@ -20,11 +23,12 @@ from numpy.typing import NDArray
 
 from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
-from artic.kinematics.mdn import KinematicsMDN, Mixture, most_likely, sample
+from artic.kinematics.mdn import KinematicsMDN, Mixture, densest, most_likely, sample
 from artic.kinematics.preprocess import InputPipeline
 from artic.kinematics.targets import TargetCodec
 
-Estimator = Literal["most-likely", "max-point"]
+Estimator = Literal["most-likely", "densest", "max-point"]
+ESTIMATORS: tuple[str, ...] = get_args(Estimator)
 
 
 @dataclass(frozen=True)
@@ -88,7 +92,8 @@ class Predictor:
         estimator: Estimator,
     ) -> NDArray[np.float64]:
         """`estimate` from the image's mixture (`mixture(depth, mask)`)."""
-        label = self.codec.decode(most_likely(mix).numpy())[0]
+        point = densest(mix) if estimator == "densest" else most_likely(mix)
+        label = self.codec.decode(point.numpy())[0]
         if estimator == "max-point":
             points = self.camera.back_project(
                 np.where(mask, depth, 0) if mask is not None else depth
