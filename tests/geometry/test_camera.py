@@ -61,3 +61,18 @@ def test_reproject_into_the_same_camera_is_identity_and_halves_with_focal():
     assert set(np.unique(small)) == {0.0, 1.5, 2.0}
     assert small[(15 + 20) // 4, (25 + 30) // 4] == 1.5, "nearest point wins"
     assert reproject(np.zeros((48, 64), np.float32), cam, half).max() == 0
+
+
+def test_camera_configs_load_and_thesis_sim_has_the_generators_field_of_view():
+    from pathlib import Path
+
+    import yaml
+
+    folder = Path(__file__).resolve().parents[2] / "conf" / "common" / "camera"
+    cams = {f.stem: CameraIntrinsics(**yaml.safe_load(f.read_text())) for f in folder.iterdir()}
+    assert {"kinect_v1", "kinect_v1_128", "thesis_sim"} <= set(cams)
+    sim = cams["thesis_sim"]
+    fov_x = np.degrees(2 * np.arctan(sim.width / 2 / sim.fx))
+    fov_y = np.degrees(2 * np.arctan(sim.height / 2 / sim.fy))
+    assert (sim.width, sim.height) == (192, 108)
+    assert fov_x == pytest.approx(84.65, abs=0.05) and fov_y == pytest.approx(54.28, abs=0.05)
