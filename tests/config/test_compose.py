@@ -16,6 +16,17 @@ def test_debug_and_experiment_presets_override_defaults():
     full = compose("generate_dataset", ["experiment=appendix_a"])
     assert tiny["dataset"]["objects"] < 10
     assert full["dataset"]["objects"] == 11000
+    # Chapter 3's experiments sample and render with the thesis generator's camera
+    for stage, experiment in (
+        ("generate_dataset", "ch3_cpu"),
+        ("generate_dataset", "appendix_a"),
+        ("render_depth", "ch3_cpu"),
+        ("render_depth", "appendix_a"),
+    ):
+        extra = ["dataset=x"] if stage == "render_depth" else []
+        camera = compose(stage, [f"experiment={experiment}", *extra])["camera"]
+        assert (camera["width"], camera["height"]) == (192, 108), (stage, experiment)
+    assert tiny["camera"]["width"] == 128
 
 
 def test_hydra_errors_become_one_line_input_errors():
