@@ -137,7 +137,7 @@ def test_mixture_log_prob_of_several_points_matches_nll():
 # --- estimators and sampling ---
 
 
-def test_most_likely_is_the_mean_of_the_heaviest_component_and_densest_of_the_densest():
+def test_most_likely_picks_the_heaviest_component_densest_the_densest():
     mix = mixture_of([0.1, 0.6, 0.3], [[-10.0, 0.0], [0.0, 5.0], [10.0, -5.0]], [[1.0, 1.0]] * 3)
     torch.testing.assert_close(most_likely(mix), torch.tensor([[0.0, 5.0]]))
     torch.testing.assert_close(densest(mix), torch.tensor([[0.0, 5.0]]))

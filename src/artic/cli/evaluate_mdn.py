@@ -2,10 +2,9 @@
 
 Writes `report.md` (the Table 3.1 row block: Mean, NN, ICP, Ours with mean and standard
 deviation of each error, and Ours with the `densest` estimator; the calibration of the
-MDN's intervals), `summary.csv`,
-`errors.csv` (per image and method), `calibration.csv`, and plots: `errors.png`
-(histograms), `calibration.png` (empirical against nominal coverage), `examples.png`
-(true axes green, predicted red).
+MDN's intervals), `summary.csv`, `errors.csv` (per image and method), `calibration.csv`,
+and plots: `errors.png` (histograms), `calibration.png` (empirical against nominal
+coverage), `examples.png` (true axes green, predicted red).
 """
 
 from __future__ import annotations
