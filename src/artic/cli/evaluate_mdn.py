@@ -154,7 +154,9 @@ def _report(
     unit: str,
     n_test: int,
 ) -> None:
-    name = cfg.category.name
+    from artic.evaluation.kinematics import METRICS
+
+    name, n = cfg.category.name, len(METRICS)  # the header names the METRICS in order
     lines = [
         f"# Table 3.1: {name}",
         "",
@@ -169,7 +171,7 @@ def _report(
         "|---|---|---|---|---|---|",
     ]
     for r in rows:
-        cells = [f"{float(r[2 + 2 * k]):.2f} ± {float(r[3 + 2 * k]):.2f}" for k in range(4)]
+        cells = [f"{float(r[2 + 2 * k]):.2f} ± {float(r[3 + 2 * k]):.2f}" for k in range(n)]
         lines.append(f"| {r[0]} | {' | '.join(cells)} | {r[1]} |")
     lines += [
         "",

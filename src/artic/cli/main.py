@@ -292,7 +292,7 @@ def predict(
 
     from artic.cli.predict import predict as run
     from artic.errors import InputError
-    from artic.kinematics.predict import ESTIMATORS
+    from artic.kinematics import ESTIMATORS
 
     if estimator not in ESTIMATORS:
         raise InputError(f"--estimator: '{estimator}' (available: {', '.join(ESTIMATORS)})")

@@ -30,6 +30,7 @@ from artic.artifacts.formats import write_json, write_npz
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
+from artic.kinematics import Estimator
 from artic.planning.demos import GraspSettings, NoiseSettings, PlannerSettings, TimingSettings
 from artic.render.noise import SensorNoiseConfig
 from artic.sim.tasks import ArticulatedScene, TaskConfig, TBallScene
@@ -80,7 +81,7 @@ class ModelConfig(Strict):
         description="predicted: a train-mdn output folder of the task's object category; "
         "null: <artifacts_root>/models/mdn/<category>",
     )
-    estimator: Literal["most-likely", "densest", "max-point"] = Field(
+    estimator: Estimator = Field(
         "most-likely",
         description="predicted: the MDN's estimator (section 3.3.1 / 3.3.2; kinematics/predict.py)",
     )

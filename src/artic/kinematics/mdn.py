@@ -133,16 +133,19 @@ def most_likely(mix: Mixture) -> Tensor:
     """The thesis' "maximum likelihood sample" (section 3.3.1): the mean of the component
     with the largest mixing weight pi_i, the most likely component (B, D). This is the
     estimate the thesis' evaluation code reports (docs/kinematics.md)."""
-    best = mix.log_pi.argmax(dim=-1)  # (B,)
-    return mix.mu[torch.arange(len(best), device=best.device), best]
+    return _component_means(mix, mix.log_pi.argmax(dim=-1))
 
 
 def densest(mix: Mixture) -> Tensor:
     """The component mean with the highest mixture density, p(mu_i) (B, D): the mixture's
     mode when the components are well separated. In many label dimensions a narrow
     component of small weight wins (docs/kinematics.md has the measured comparison)."""
-    best = mixture_log_prob(mix, mix.mu).argmax(dim=-1)  # (B,)
-    return mix.mu[torch.arange(len(best), device=best.device), best]
+    return _component_means(mix, mixture_log_prob(mix, mix.mu).argmax(dim=-1))
+
+
+def _component_means(mix: Mixture, component: Tensor) -> Tensor:
+    """The mean of component `component[b]` (B,) of each batch item: (B, D)."""
+    return mix.mu[torch.arange(len(component), device=component.device), component]
 
 
 def sample(mix: Mixture, n: int, generator: torch.Generator | None = None) -> Tensor:

@@ -15,7 +15,7 @@ Estimators (`ESTIMATORS`):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal, get_args
+from typing import Any
 
 import numpy as np
 import torch
@@ -23,12 +23,10 @@ from numpy.typing import NDArray
 
 from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
+from artic.kinematics import Estimator
 from artic.kinematics.mdn import KinematicsMDN, Mixture, densest, most_likely, sample
 from artic.kinematics.preprocess import InputPipeline
 from artic.kinematics.targets import TargetCodec
-
-Estimator = Literal["most-likely", "densest", "max-point"]
-ESTIMATORS: tuple[str, ...] = get_args(Estimator)
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,8 @@ from artic.objects.spec import GeometryRanges, ObjectSpec, Pose, PoseRanges
 
 if TYPE_CHECKING:
     from artic.geometry.camera import CameraIntrinsics
-    from artic.kinematics.predict import Estimator, Predictor
+    from artic.kinematics import Estimator
+    from artic.kinematics.predict import Predictor
     from artic.render.noise import SensorNoiseConfig
 
 Array = NDArray[np.float64]
