@@ -28,6 +28,7 @@ from artic.artifacts.manifest import Manifest, read_manifest, verify_file
 from artic.errors import InputError
 
 if TYPE_CHECKING:
+    from artic.geometry.camera import CameraIntrinsics
     from artic.objects.spec import ObjectSpec
     from artic.objects.structures import StructureSpec
     from artic.objects.tree import ArticulatedPoses, ObjectTree
@@ -91,6 +92,20 @@ class ObjectDataset:
     @property
     def category(self) -> str:
         return self.rows[0].category
+
+    @property
+    def camera(self) -> CameraIntrinsics:
+        """The camera the objects' positions were sampled for (the generating config's)."""
+        from pydantic import ValidationError
+
+        from artic.geometry.camera import CameraIntrinsics
+
+        try:
+            return CameraIntrinsics.model_validate(self.manifest.config["camera"])
+        except (KeyError, ValidationError):
+            raise InputError(
+                f"{self.root / 'manifest.json'}: config has no valid camera; pass camera=<name>"
+            ) from None
 
     def spec(self, object_id: int) -> ObjectSpec | StructureSpec:
         """The object's spec.json (verified), of either family: an Appendix A `ObjectSpec`

@@ -48,7 +48,9 @@ class RenderConfig(Strict):
 
 class RenderDepthConfig(StageConfig):
     dataset: str = Field(description="a generate-dataset output folder")
-    camera: CameraIntrinsics
+    camera: CameraIntrinsics | None = Field(
+        None, description="None: the dataset's camera, the one its positions were sampled for"
+    )
     noise: SensorNoiseConfig
     render: RenderConfig
 
@@ -67,6 +69,11 @@ def latin_hypercube(
 @functools.lru_cache(maxsize=2)
 def _dataset(path: str) -> ObjectDataset:
     return ObjectDataset.open(Path(path))
+
+
+def camera_of(cfg: RenderDepthConfig, ds: ObjectDataset) -> CameraIntrinsics:
+    """The camera to render with: `camera=<name>` if given, else the dataset's."""
+    return cfg.camera if cfg.camera is not None else ds.camera
 
 
 def _ids(ds: ObjectDataset, cfg: RenderDepthConfig, chunk: int) -> list[int]:
@@ -100,7 +107,8 @@ def render_chunk(cfg: RenderDepthConfig, inputs: dict[str, Path], chunk: int, tm
         k: [] for k in ("depth", "depth_clean", "part_mask", "labels")
     }
     ids: list[tuple[int, int, bool]] = []
-    with make_backend(cfg.render.backend, cfg.camera, threads=1) as backend:
+    camera = camera_of(cfg, ds)
+    with make_backend(cfg.render.backend, camera, threads=1) as backend:
         for object_id in _ids(ds, cfg, chunk):
             spec = ds.template_spec(object_id)
             obj = build(spec)
@@ -112,7 +120,7 @@ def render_chunk(cfg: RenderDepthConfig, inputs: dict[str, Path], chunk: int, tm
             for k, (q, image) in enumerate(
                 zip(qs, backend.render_many(obj, qs, urdf), strict=True)
             ):
-                noisy = apply_sensor_noise(image.depth, cfg.noise, rng, cfg.camera.fx)
+                noisy = apply_sensor_noise(image.depth, cfg.noise, rng, camera.fx)
                 labels = image_labels(spec, obj, q)
                 arrays["depth"].append(encode_depth(noisy, cfg.render.depth_encoding))
                 if cfg.render.store_clean_depth:
@@ -137,6 +145,7 @@ def _finalize(
     from artic.objects.labels import label_columns
 
     ds = _dataset(str(inputs["dataset"]))
+    camera = camera_of(cfg, ds)
     dof = ds.rows[0].dof
     columns = label_columns(dof)
     rows: list[list[object]] = []
@@ -163,7 +172,7 @@ def _finalize(
         "category": ds.category,
         "dof": dof,
         "joint_type": category.joint_type,
-        "camera": cfg.camera.model_dump(),
+        "camera": camera.model_dump(),
         "label_columns": columns,
         "depth_encoding": cfg.render.depth_encoding,
         "noise": cfg.noise.enabled,
@@ -175,7 +184,7 @@ def _finalize(
     write_json(work / INFO, info)
     if preview:
         _write_preview(
-            work / PREVIEW, preview, preview_labels, columns, dof, cfg, category.joint_type
+            work / PREVIEW, preview, preview_labels, columns, dof, cfg, camera, category.joint_type
         )
     n_test = sum(r[3] == "test" for r in rows)
     return {
@@ -194,6 +203,7 @@ def _write_preview(
     columns: list[str],
     dof: int,
     cfg: RenderDepthConfig,
+    camera: CameraIntrinsics,
     joint_type: str,
 ) -> None:
     from PIL import Image
@@ -212,8 +222,8 @@ def _write_preview(
         for lab in labels
     ]
     kinds = [[joint_type] * dof for _ in depths]
-    scale = max(1, PREVIEW_TILE_PX // cfg.camera.width)
-    sheet = contact_sheet(depths, axes, kinds, cfg.camera, cfg.render.preview_columns, scale)
+    scale = max(1, PREVIEW_TILE_PX // camera.width)
+    sheet = contact_sheet(depths, axes, kinds, camera, cfg.render.preview_columns, scale)
     Image.fromarray(sheet).save(path, format="PNG")
 
 
