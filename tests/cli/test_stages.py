@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -76,6 +77,24 @@ def test_up_to_date_stage_is_skipped_and_force_redoes_it(tiny_objects, tmp_path)
         "generate-dataset", "debug=tiny", "category=microwave", f"out={tiny_objects}"
     )
     assert code == 0 and "up to date" in " ".join(out.split())  # the line may wrap
+
+
+def test_an_input_moved_elsewhere_is_the_same_input(tiny_objects, tiny_depth, tmp_path):
+    # the same dataset under another path: the rendered images are up to date
+    moved = tmp_path / "moved"
+    shutil.copytree(tiny_objects, moved)
+    args = ["render-depth", "debug=tiny", f"out={tiny_depth}"]
+    code, out, err = run_cli(*args, f"dataset={moved}")
+    assert code == 0 and "up to date" in " ".join(out.split()), err
+    # another dataset (other content) is not: the images are made again
+    other = tmp_path / "other"
+    gen = ["generate-dataset", "debug=tiny", "category=microwave", "seed=1"]
+    assert run_cli(*gen, f"out={other}")[0] == 0
+    depth = tmp_path / "depth"
+    shutil.copytree(tiny_depth, depth)
+    code, out, _ = run_cli("render-depth", "debug=tiny", f"out={depth}", f"dataset={other}")
+    assert code == 0 and "up to date" not in " ".join(out.split())
+    assert tree_bytes(depth) != tree_bytes(tiny_depth)
 
 
 def test_same_seed_same_bytes_and_shards_merge_to_one_run(tmp_path, tiny_objects, tiny_depth):

@@ -102,7 +102,9 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
     cfg = validate(stage.schema, raw)
     out = Path(cfg.out)
     inputs = _read_inputs(stage, cfg)
-    output_config = {k: v for k, v in raw.items() if k not in NON_OUTPUT_KEYS}
+    # an input is identified by its content hash, not by where it lies
+    skip = set(NON_OUTPUT_KEYS) | set(stage.inputs)
+    output_config = {k: v for k, v in raw.items() if k not in skip}
     config_hash = sha256_json({"stage": stage.name, "config": output_config})
     input_hashes = {k: r.content_hash for k, r in inputs.items()}
 
