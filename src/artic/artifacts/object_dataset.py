@@ -22,13 +22,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ValidationError
 
 from artic.artifacts.manifest import Manifest, read_manifest, verify_file
 from artic.errors import InputError
+from artic.geometry.camera import CameraIntrinsics
 
 if TYPE_CHECKING:
-    from artic.geometry.camera import CameraIntrinsics
     from artic.objects.spec import ObjectSpec
     from artic.objects.structures import StructureSpec
     from artic.objects.tree import ArticulatedPoses, ObjectTree
@@ -96,10 +96,6 @@ class ObjectDataset:
     @property
     def camera(self) -> CameraIntrinsics:
         """The camera the objects' positions were sampled for (the generating config's)."""
-        from pydantic import ValidationError
-
-        from artic.geometry.camera import CameraIntrinsics
-
         try:
             return CameraIntrinsics.model_validate(self.manifest.config["camera"])
         except (KeyError, ValidationError):
@@ -110,8 +106,6 @@ class ObjectDataset:
     def spec(self, object_id: int) -> ObjectSpec | StructureSpec:
         """The object's spec.json (verified), of either family: an Appendix A `ObjectSpec`
         or a varying-structure `StructureSpec` (`artic.objects.families.parse_spec`)."""
-        from pydantic import ValidationError
-
         from artic.objects.families import parse_spec
 
         path = verify_file(self.root, self.manifest, f"{object_dir(object_id)}/spec.json")
@@ -153,8 +147,6 @@ class ObjectDataset:
         return self._model(object_id, POSES, ArticulatedPoses)
 
     def _model(self, object_id: int, name: str, model: type[M]) -> M:
-        from pydantic import ValidationError
-
         rel = f"{object_dir(object_id)}/{name}"
         if not self.has(object_id, name):
             raise InputError(
