@@ -192,3 +192,18 @@ def test_dmp_rollout_tracks_a_dmp_to_the_goal():
     assert all(t.success for t in trajs)
     idle = returns_of(rollouts(PointMass(), idle_action(2), [0, 1]))
     assert normalised_return(returns_of(trajs), idle) > 0.5
+
+
+def test_npg_update_writes_into_the_parameters_own_storage():
+    """The step is added in place: each parameter keeps its own (aligned) storage.
+    `vector_to_parameters` made them views into one flat vector at unaligned offsets,
+    where MKL's products differ from a resumed policy's fresh tensors on AVX-512 CPUs."""
+    policy = GaussianMLPPolicy(2, 2, generator=torch.Generator().manual_seed(5))
+    npg = NPG(policy, NPGConfig(step_size=0.1))
+    storage = [(p.data_ptr(), p.untyped_storage().nbytes()) for p in policy.parameters()]
+    before = [p.detach().clone() for p in policy.parameters()]
+    act = gaussian_actor(policy, torch_generator(7, 0))
+    step = npg.update(rollouts(PointMass(), act, rollout_seeds(7, 0, 4)))
+    assert step.alpha > 0
+    assert [(p.data_ptr(), p.untyped_storage().nbytes()) for p in policy.parameters()] == storage
+    assert any(not torch.equal(a, p) for a, p in zip(before, policy.parameters(), strict=True))

@@ -321,15 +321,20 @@ def predict(model: GraphLabellingNet, graph: PartGraph) -> GraphLabelling:
     device = next(model.parameters()).device
     batch = collate([graph]).to(device)
     logits = model(batch)
-    root = graph_log_softmax(logits.root, batch.batch, 1).exp()
 
     def as_numpy(t: Tensor) -> np.ndarray:
-        return t.detach().cpu().double().numpy()
+        return t.detach().cpu().numpy()
 
+    # the network runs in float32; its probabilities are normalised in float64 from the
+    # logits, so a distribution sums to 1 to float64 precision on any CPU's kernels
+    def f64(t: Tensor) -> Tensor:
+        return t.detach().cpu().double()
+
+    root = graph_log_softmax(f64(logits.root), batch.batch.cpu(), 1).exp()
     return GraphLabelling(
         edges=graph.edges.copy(),
-        motion=as_numpy(torch.softmax(logits.motion, dim=1)),
-        exists=as_numpy(torch.sigmoid(logits.exists)),
-        parent_first=as_numpy(torch.sigmoid(logits.parent_first)),
+        motion=as_numpy(torch.softmax(f64(logits.motion), dim=1)),
+        exists=as_numpy(torch.sigmoid(f64(logits.exists))),
+        parent_first=as_numpy(torch.sigmoid(f64(logits.parent_first))),
         root=as_numpy(root),
     )

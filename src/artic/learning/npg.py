@@ -24,7 +24,7 @@ make a run resumable.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -202,6 +202,24 @@ def gaussian_kl(
     return kl.sum(-1).mean()
 
 
+def _add_to_parameters(params: Iterable[nn.Parameter], step: torch.Tensor) -> None:
+    """theta += step, written into each parameter's own storage.
+
+    `torch.nn.utils.vector_to_parameters` would instead make every parameter a view into
+    one flat vector (at offsets off a 64-byte boundary); MKL's small matrix products give
+    alignment-dependent results on AVX-512 CPUs, so a resumed policy (freshly allocated,
+    aligned tensors) would drift from the uninterrupted run by an ulp per rollout.
+    """
+    offset = 0
+    with torch.no_grad():
+        for p in params:
+            n = p.numel()
+            p.add_(step[offset : offset + n].view_as(p))
+            offset += n
+    if offset != step.numel():
+        raise ValueError(f"step has {step.numel()} entries, the parameters {offset}")
+
+
 class NPG:
     """Natural policy gradient for a `GaussianMLPPolicy`; DAPG when `demos` is given and
     `cfg.dapg_lambda0 > 0`. demos: (obs (M, obs_dim), actions (M, act_dim))."""
@@ -263,8 +281,7 @@ class NPG:
         x = conjugate_gradient(fvp, g, cfg.cg_iters)
         gx = float(g @ x)
         alpha = math.sqrt(cfg.step_size / gx) if gx > 1e-20 else 0.0
-        theta = torch.nn.utils.parameters_to_vector(policy.parameters()).detach()
-        torch.nn.utils.vector_to_parameters(theta + alpha * x, policy.parameters())
+        _add_to_parameters(policy.parameters(), alpha * x)
         policy.clamp_log_std()
         with torch.no_grad():
             kl_new = float(gaussian_kl(mean_old, log_std_old, policy.mean(obs), policy.log_std))
