@@ -18,6 +18,9 @@ class InputError(Exception):
 
 
 class Interrupted(Exception):
-    """Work stopped by the user (Ctrl-C); finished shards are kept for a resume."""
+    """Work stopped by the user (Ctrl-C: exit code 130) or by SIGTERM (143, as a shell
+    reports a process ended by that signal); finished chunks are kept for a resume."""
 
-    exit_code = 130
+    def __init__(self, message: str, exit_code: int = 130) -> None:
+        super().__init__(message)
+        self.exit_code = exit_code

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from artic.artifacts.formats import write_json, write_npz
-from artic.artifacts.hashing import sha256_json
 from artic.artifacts.manifest import (
     MANIFEST,
     Manifest,
@@ -21,6 +20,7 @@ from artic.artifacts.manifest import (
     read_manifest,
 )
 from artic.cli.fit_dmp import read_dmp
+from artic.cli.stage_runner import config_hash_of
 from artic.errors import InputError
 from artic.policies.dmp import rollout_dmp
 from cli_runner import run_cli
@@ -89,7 +89,7 @@ def write_plan_demos(
     manifest = Manifest(
         stage=stage,
         config=config,
-        config_hash=sha256_json(config),
+        config_hash=config_hash_of(stage, config, ()),
         seed=0,
         inputs={},
         outputs=outputs,

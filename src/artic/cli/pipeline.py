@@ -136,6 +136,7 @@ def run_pipeline(
 ) -> None:
     from artic.cli.main import load_stage, stage_command
     from artic.cli.stage_runner import resolved_config, run_stage
+    from artic.config.compose import validate
 
     path = pipeline_path(name)
     pipeline = load_pipeline(path, values)
@@ -144,11 +145,21 @@ def run_pipeline(
     table = Table(title=f"pipeline {name} ({path})", title_justify="left")
     for col in ("stage", "cmd", "status", "seconds", "output"):
         table.add_column(col)
+    # every stage's config is composed and validated before the first one runs (a later
+    # stage's inputs may not exist yet: they are checked when that stage runs)
+    planned = []
     for stage_name, spec in pipeline.stages.items():
         stage = load_stage(stage_command(spec.cmd, spec.overrides))
-        out = str(resolved_config(stage, spec.overrides)["out"])
+        try:
+            raw = resolved_config(stage, spec.overrides)
+            validate(stage.schema, raw)
+        except InputError as err:
+            raise InputError(f"{path}: stage {stage_name}: {err}") from None
+        out = str(raw["out"])
         if spec.outs and _norm(out) not in {_norm(o) for o in spec.outs}:
             raise InputError(f"{path}: stage {stage_name}: writes {out}, not listed in its outs")
+        planned.append((stage_name, spec, stage, out))
+    for stage_name, spec, stage, out in planned:
         if dry_run:
             table.add_row(stage_name, spec.cmd, "planned", "", out)
             continue

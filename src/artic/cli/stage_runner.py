@@ -10,9 +10,11 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import signal
+import threading
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +34,7 @@ from artic.artifacts.manifest import (
     read_manifest,
     verify_outputs,
 )
-from artic.artifacts.workdir import WorkDir, chunks_of_shard
+from artic.artifacts.workdir import WorkDir, chunks_of_shard, shards_of_chunks
 from artic.cli.progress import progress
 from artic.config.compose import compose, validate
 from artic.config.schemas import NON_OUTPUT_KEYS, StageConfig
@@ -96,85 +98,171 @@ def resolved_config(stage: Stage[Any], overrides: list[str]) -> dict[str, Any]:
     return compose(stage.conf, overrides)
 
 
+def config_hash_of(stage: str, config: dict[str, Any], input_keys: Iterable[str]) -> str:
+    """The config hash of a stage output: the resolved config without the keys that do
+    not change the outputs (`NON_OUTPUT_KEYS` and the paths of the stage's inputs)."""
+    skip = set(NON_OUTPUT_KEYS) | set(input_keys)
+    return sha256_json(
+        {"stage": stage, "config": {k: v for k, v in config.items() if k not in skip}}
+    )
+
+
 def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Result:
-    """Run `stage` with Hydra `overrides`; see the module docstring."""
+    """Run `stage` with Hydra `overrides`; see the module docstring.
+
+    Everything that can be checked is checked before anything is created: the config,
+    `out`, the inputs (manifests and their integrity) and the plan. The rest runs with
+    the work area's lock held only around state changes (see `artifacts.workdir`)."""
     raw = resolved_config(stage, overrides)
     cfg = validate(stage.schema, raw)
     out = Path(cfg.out)
+    check_out(out)
     inputs = _read_inputs(stage, cfg)
+    paths = {k: Path(r.path) for k, r in inputs.items()}
+    plan = stage.plan(cfg, paths)
     # an input is identified by its content hash, not by where it lies
-    skip = set(NON_OUTPUT_KEYS) | set(stage.inputs)
-    output_config = {k: v for k, v in raw.items() if k not in skip}
-    config_hash = sha256_json({"stage": stage.name, "config": output_config})
+    config_hash = config_hash_of(stage.name, raw, stage.inputs)
     input_hashes = {k: r.content_hash for k, r in inputs.items()}
-
-    if not force and (out / MANIFEST).is_file():
-        previous = read_manifest(out)
-        same_inputs = {k: r.content_hash for k, r in previous.inputs.items()} == input_hashes
-        if previous.config_hash == config_hash and same_inputs:
-            verify_outputs(out, previous)
-            return Result("skipped", out, previous, "up to date")
+    key = sha256_json({"config": config_hash, "inputs": input_hashes})
+    shard, shards = cfg.shard.index, cfg.shard.count
 
     work = WorkDir(out)
-    key = sha256_json({"config": config_hash, "inputs": input_hashes})
-    fresh = force and cfg.shard.count == 1
-    already = work.prepare(key, fresh=fresh)
+    with work.locked():
+        # an output is up to date unless a work area of the same key is pending (an
+        # interrupted --force, which is then resumed)
+        if not force and work.stored_key() != key:
+            previous = _up_to_date(out, config_hash, input_hashes)
+            if previous is not None:
+                return Result("skipped", out, previous, "up to date")
+        already = work.prepare(key, force=force, shared=shards > 1)
     handler = _log_to(work.path / LOG)
     started, t0 = now_iso(), time.perf_counter()
+    restore = _terminate_as_interrupt()
     try:
-        paths = {k: Path(r.path) for k, r in inputs.items()}
-        plan = stage.plan(cfg, paths)
-        todo = [
-            c
-            for c in chunks_of_shard(plan.n_chunks, cfg.shard.index, cfg.shard.count)
-            if c not in work.finished()
-        ]
         if already:
             log.info("%s: resuming, %d of %d chunks already done", out, already, plan.n_chunks)
-        _execute(stage, cfg, paths, plan, todo, work)
-        done = len(work.finished())
-        if done < plan.n_chunks:
-            msg = (
-                f"shard {cfg.shard.index + 1}/{cfg.shard.count} finished; {done} of "
-                f"{plan.n_chunks} chunks done; run the remaining shards, or the command "
-                "without shard.*, to finish"
-            )
-            return Result("partial", out, None, msg)
-        stats = stage.finalize(cfg, paths, work.path)
-        outputs = list_outputs(work.path)
-        wall = time.perf_counter() - t0
-        manifest = Manifest(
-            stage=stage.name,
-            config=raw,
-            config_hash=config_hash,
-            seed=cfg.seed,
-            inputs=inputs,
-            outputs=outputs,
-            content_hash=outputs_hash(outputs),
-            versions=package_versions(),
-            started_at=started,
-            finished_at=now_iso(),
-            wall_time_s=round(wall, 3),
-            stats=stats,
-        )
-        write_json(work.path / MANIFEST, manifest.model_dump(mode="json"))
-        logging.getLogger().removeHandler(handler)
-        handler.close()
-        work.publish()
-        return Result("complete", out, manifest)
-    except (InputError, Interrupted):
+        mine = chunks_of_shard(plan.n_chunks, shard, shards)
+        while True:
+            with work.locked():
+                if not work.is_mine(key):
+                    return _gone(out, config_hash, input_hashes)
+                finished = work.finished()
+                todo = [c for c in mine if c not in finished]
+                if not todo:
+                    missing = sorted(set(range(plan.n_chunks)) - finished)
+                    if missing:
+                        names = ", ".join(
+                            f"{s + 1}/{shards}" for s in shards_of_chunks(missing, shards)
+                        )
+                        msg = (
+                            f"shard {shard + 1}/{shards} finished; {len(finished)} of "
+                            f"{plan.n_chunks} chunks done; shards {names} still to run (or "
+                            "the command without shard.*) to finish"
+                        )
+                        return Result("partial", out, None, msg)
+                    stats = stage.finalize(cfg, paths, work.path)
+                    outputs = list_outputs(work.path)
+                    manifest = Manifest(
+                        stage=stage.name,
+                        config=raw,
+                        config_hash=config_hash,
+                        seed=cfg.seed,
+                        inputs=inputs,
+                        outputs=outputs,
+                        content_hash=outputs_hash(outputs),
+                        versions=package_versions(),
+                        started_at=started,
+                        finished_at=now_iso(),
+                        wall_time_s=round(time.perf_counter() - t0, 3),
+                        stats=stats,
+                    )
+                    write_json(work.path / MANIFEST, manifest.model_dump(mode="json"))
+                    logging.getLogger().removeHandler(handler)
+                    handler.close()
+                    work.publish()
+                    return Result("complete", out, manifest)
+                claimed = work.claim(todo)
+            if claimed:
+                _execute(stage, cfg, paths, plan, claimed, work, key)
+            else:
+                time.sleep(_POLL_S)  # another process is doing the rest of our chunks
+    except InputError:
+        with work.locked():
+            if work.created:
+                work.remove_if_unused(key)
         raise
-    except KeyboardInterrupt:
+    except Interrupted:
+        raise
+    except KeyboardInterrupt as err:
+        term = isinstance(err, Terminated)
         raise Interrupted(
-            f"interrupted: {len(work.finished())} chunks of {out} are kept; "
-            "run the same command again to resume"
+            f"{'terminated' if term else 'interrupted'}: {len(work.finished())} chunks of "
+            f"{out} are kept; run the same command again to resume",
+            exit_code=143 if term else 130,
         ) from None
     except Exception as err:
         log.error("internal error in %s:\n%s", stage.name, traceback.format_exc())
         raise InternalError(f"{stage.name}: {type(err).__name__}: {err}", work.path / LOG) from err
     finally:
+        restore()
+        work.leave()
         logging.getLogger().removeHandler(handler)
         handler.close()
+
+
+#: seconds between looks at chunks other processes are doing
+_POLL_S = 0.2
+
+
+def check_out(out: Path) -> None:
+    """`out` must be a folder or not exist yet, under folders: InputError otherwise."""
+    for p in (out, *out.parents):
+        if p.exists():
+            if not p.is_dir():
+                if p == out:
+                    raise InputError(f"out: {out} is a file, not a folder")
+                raise InputError(f"out: cannot write to {out} ({p} is a file)")
+            return
+
+
+def _up_to_date(out: Path, config_hash: str, input_hashes: dict[str, str]) -> Manifest | None:
+    """The manifest of `out` when it is up to date (every file checked), else None."""
+    if not (out / MANIFEST).is_file():
+        return None
+    previous = read_manifest(out)
+    same_inputs = {k: r.content_hash for k, r in previous.inputs.items()} == input_hashes
+    if previous.config_hash != config_hash or not same_inputs:
+        return None
+    verify_outputs(out, previous)
+    return previous
+
+
+def _gone(out: Path, config_hash: str, input_hashes: dict[str, str]) -> Result:
+    """Our work area was published (or replaced) by another process."""
+    previous = _up_to_date(out, config_hash, input_hashes)
+    if previous is None:
+        raise InputError(f"out: {out} was replaced by another run with another config meanwhile")
+    return Result("skipped", out, previous, "up to date (finished by another process)")
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C."""
+
+
+def _terminate_as_interrupt() -> Callable[[], None]:
+    """Turn SIGTERM into `Terminated` in the main thread; returns the undo."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    def handler(signum: int, frame: Any) -> None:
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, handler)
+
+    def restore() -> None:
+        signal.signal(signal.SIGTERM, previous)
+
+    return restore
 
 
 def _read_inputs(stage: Stage[C], cfg: C) -> dict[str, InputRecord]:
@@ -182,12 +270,36 @@ def _read_inputs(stage: Stage[C], cfg: C) -> dict[str, InputRecord]:
     for name, path in stage.input_paths(cfg).items():
         try:
             manifest = read_manifest(path, expected_stage=stage.inputs[name])
+            _check_integrity(path, manifest)
         except InputError as err:
             raise InputError(f"{name}: {err}") from None
         records[name] = InputRecord(
             path=str(path), stage=manifest.stage, content_hash=manifest.content_hash
         )
     return records
+
+
+def _check_integrity(folder: Path, manifest: Manifest) -> None:
+    """A manifest edited by hand is refused: its config must give its config hash (as
+    the stage that wrote it computes it) and its outputs listing its content hash."""
+    from artic.cli.main import STAGE_MODULES, load_stage
+
+    where = folder / MANIFEST
+    if outputs_hash(manifest.outputs) != manifest.content_hash:
+        raise InputError(
+            f"{where}: content_hash does not match the listed outputs (edited by hand?); "
+            "rerun the stage that made it with --force"
+        )
+    if manifest.stage not in STAGE_MODULES:
+        return
+    keys = set(load_stage(manifest.stage).inputs)
+    # outputs made before 2026-11-26 included the input paths in the hash
+    accepted = {config_hash_of(manifest.stage, manifest.config, k) for k in (keys, set())}
+    if manifest.config_hash not in accepted:
+        raise InputError(
+            f"{where}: config does not match config_hash (edited by hand?); "
+            "rerun the stage that made it with --force"
+        )
 
 
 def _log_to(path: Path) -> logging.Handler:
@@ -209,23 +321,59 @@ def available_cpus() -> int:
     return max(1, n)
 
 
+#: in a worker process: the pid of the runner that started it (None in the runner)
+_PARENT: int | None = None
+
+
 def _run_chunk(fn: ChunkFn, cfg: Any, inputs: dict[str, Path], chunk: int, out: Path) -> int:
-    """Worker entry: write chunk `chunk` into a private folder, then commit it."""
+    """Worker entry: write chunk `chunk` into a private folder, then commit it (not if
+    the runner that started this worker has died)."""
     work = WorkDir(out)
     tmp = work.chunk_tmp(chunk)
     items = fn(cfg, inputs, chunk, tmp)
-    work.commit_chunk(chunk, tmp)
+    if not work.commit_chunk(chunk, tmp, parent=_PARENT):
+        os._exit(1)  # orphaned: the runner died; nobody waits for this worker
     return items
 
 
-def _worker_init() -> None:
-    # One thread per worker process: parallelism comes from the processes.
+def _worker_init(parent: int) -> None:
+    """Worker setup: one thread (parallelism comes from the processes), Ctrl-C left to
+    the runner, and death with the runner: the kernel kills the worker when the runner
+    dies (Linux `PR_SET_PDEATHSIG`), and a watcher thread does elsewhere."""
+    global _PARENT
+    _PARENT = parent
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:
+        os._exit(1)  # the runner died before this worker started
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.2)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="artic-parent-watch", daemon=True).start()
 
 
 def _execute(
-    stage: Stage[C], cfg: C, inputs: dict[str, Path], plan: Plan, todo: list[int], work: WorkDir
+    stage: Stage[C],
+    cfg: C,
+    inputs: dict[str, Path],
+    plan: Plan,
+    todo: list[int],
+    work: WorkDir,
+    key: str,
 ) -> None:
+    """Do the chunks `todo` (claimed by this process), inline or in worker processes;
+    each claim is released once its chunk is done."""
     if not todo:
         return
     workers = min(cfg.runtime.workers or available_cpus(), len(todo))
@@ -234,21 +382,45 @@ def _execute(
         if workers <= 1:
             for c in todo:
                 advance(_run_chunk(stage.chunk, cfg, inputs, c, work.out))
+                work.release_claim(c)
             return
         ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init) as pool:
-            pending: set[Future[int]] = set()
-            queue = list(todo)
-            try:
-                while queue or pending:
-                    while queue and len(pending) < 2 * workers:
-                        c = queue.pop(0)
-                        pending.add(pool.submit(_run_chunk, stage.chunk, cfg, inputs, c, work.out))
-                    finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                    for fut in finished:
-                        advance(fut.result())
-            except BaseException:
-                for fut in pending:
-                    fut.cancel()
-                pool.shutdown(wait=True, cancel_futures=True)
-                raise
+        pool = ProcessPoolExecutor(
+            workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),)
+        )
+        pending: dict[Future[int], int] = {}
+        queue = list(todo)
+        try:
+            while queue or pending:
+                # only as many chunks as workers are handed out, so that on Ctrl-C or
+                # SIGTERM no queued chunk is left to finish
+                while queue and len(pending) < workers:
+                    c = queue.pop(0)
+                    pending[pool.submit(_run_chunk, stage.chunk, cfg, inputs, c, work.out)] = c
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    c = pending.pop(fut)
+                    advance(fut.result())
+                    work.release_claim(c)
+        except BaseException:
+            _stop(pool, pending)
+            raise
+        pool.shutdown(wait=True)
+
+
+def _stop(pool: ProcessPoolExecutor, pending: dict[Future[int], int]) -> None:
+    """Stop the workers now: cancel what has not started, end what runs (its chunk is
+    not committed; finished chunks are kept)."""
+    for fut in pending:
+        fut.cancel()
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+    deadline = time.monotonic() + 5
+    for p in procs:
+        p.join(max(0.0, deadline - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join(1)
