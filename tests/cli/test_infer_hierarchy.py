@@ -37,7 +37,7 @@ def tiny_labeller() -> GraphLabellingNet:
     return GraphLabellingNet(cfg)
 
 
-def tiny_segmenter(steps: int = 30) -> PartSegmentationNet:
+def tiny_segmenter(steps: int = 50) -> PartSegmentationNet:
     """A 1/8-width segmenter trained a few steps on box_cloud (so it finds several parts)."""
     torch.manual_seed(0)
     model = PartSegmentationNet(SegmentationConfig().scaled(0.125))

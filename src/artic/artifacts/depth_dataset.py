@@ -30,6 +30,7 @@ STAGE = "render-depth"
 INFO = "dataset.json"
 LABELS = "labels.csv"
 PREVIEW = "preview.png"
+SHARD_ARRAYS = ("depth", "part_mask", "labels", "object_id", "image_index", "test")
 
 
 def shard_name(chunk: int) -> str:
@@ -68,7 +69,14 @@ class DepthDataset:
     @classmethod
     def open(cls, root: Path) -> DepthDataset:
         manifest = read_manifest(root, expected_stage=STAGE)
-        info = json.loads(verify_file(root, manifest, INFO).read_text())
+        path = verify_file(root, manifest, INFO)
+        try:
+            info = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as err:
+            raise InputError(f"{path}: not valid JSON ({err})") from None
+        needed = ("category", "label_columns", "camera", "dof", "joint_type")
+        if not isinstance(info, dict) or any(k not in info for k in needed):
+            raise InputError(f"{path}: expected a JSON object with {', '.join(needed)}")
         return cls(root, manifest, info)
 
     @classmethod
@@ -90,7 +98,11 @@ class DepthDataset:
         """Shards in order, each verified against the manifest as it is read; depth
         decoded to float32 metres, or as stored (uint16 mm / float16 m) if not `decode`."""
         for rel in self.shard_files():
-            data = read_npz(verify_file(self.root, self.manifest, rel))
+            path = verify_file(self.root, self.manifest, rel)
+            data = read_npz(path, SHARD_ARRAYS)
+            n = len(data["labels"])
+            if any(len(data[k]) != n for k in SHARD_ARRAYS):
+                raise InputError(f"{path}: shard arrays have different lengths")
             yield Shard(
                 depth=decode_depth(data["depth"]) if decode else data["depth"],
                 part_mask=data["part_mask"],

@@ -12,12 +12,15 @@ import io
 import json
 import os
 import zipfile
+import zlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from artic.errors import InputError
 
 _EPOCH = (1980, 1, 1, 0, 0, 0)
 
@@ -35,10 +38,20 @@ def write_npz(path: Path, arrays: Mapping[str, NDArray[Any]], compress: bool = T
             zf.writestr(info, buf.getvalue(), compresslevel=6 if compress else None)
 
 
-def read_npz(path: Path) -> dict[str, NDArray[Any]]:
-    """All arrays of an .npz, loaded eagerly (no pickles)."""
-    with np.load(path, allow_pickle=False) as data:
-        return {k: data[k] for k in data.files}
+def read_npz(path: Path, keys: Sequence[str] = ()) -> dict[str, NDArray[Any]]:
+    """All arrays of an .npz, loaded eagerly (no pickles); InputError naming the file if
+    it cannot be decoded (truncated, not a zip, an object array) or lacks one of `keys`."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as err:
+        text = str(err).strip().splitlines()
+        reason = text[0] if text else type(err).__name__
+        raise InputError(f"{path}: not a readable .npz file ({reason})") from None
+    missing = [k for k in keys if k not in arrays]
+    if missing:
+        raise InputError(f"{path}: .npz has no array {', '.join(missing)}")
+    return arrays
 
 
 def write_json(path: Path, value: Any) -> None:

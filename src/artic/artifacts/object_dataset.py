@@ -79,12 +79,19 @@ class ObjectDataset:
         reader = csv.DictReader(io.StringIO(text))
         if tuple(reader.fieldnames or ()) != INDEX_COLUMNS:
             raise InputError(f"{root / INDEX}: expected columns {', '.join(INDEX_COLUMNS)}")
-        rows = tuple(
-            IndexRow(
-                int(r["object_id"]), r["split"], r["category"], int(r["dof"]), int(r["chirality"])
+        try:
+            rows = tuple(
+                IndexRow(
+                    int(r["object_id"]),
+                    r["split"],
+                    r["category"],
+                    int(r["dof"]),
+                    int(r["chirality"]),
+                )
+                for r in reader
             )
-            for r in reader
-        )
+        except (TypeError, ValueError):
+            raise InputError(f"{root / INDEX}: malformed row") from None
         if not rows:
             raise InputError(f"{root / INDEX}: the dataset has no objects")
         return cls(root, manifest, rows)
@@ -160,8 +167,17 @@ class ObjectDataset:
 
     def urdf(self, object_id: int) -> Path:
         """Path of the object's URDF after verifying it and its meshes."""
+        import xml.etree.ElementTree as ET
+
         folder = object_dir(object_id)
         for rel in self.manifest.outputs:
             if rel.startswith(folder + "/meshes/"):
                 verify_file(self.root, self.manifest, rel)
-        return verify_file(self.root, self.manifest, f"{folder}/object.urdf")
+        path = verify_file(self.root, self.manifest, f"{folder}/object.urdf")
+        try:
+            root = ET.parse(path).getroot()
+        except (ET.ParseError, UnicodeDecodeError) as err:
+            raise InputError(f"{path}: not a valid URDF ({err})") from None
+        if root.tag != "robot":
+            raise InputError(f"{path}: not a valid URDF (root element <{root.tag}>, not <robot>)")
+        return path

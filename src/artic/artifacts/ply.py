@@ -120,7 +120,8 @@ def encode_ply(
     comments: Sequence[str] = (),
 ) -> bytes:
     """The bytes of a binary little-endian PLY of (N, 3) `points` (metres) with the
-    optional per-point (N,) properties; `comments` are single-line header comments."""
+    optional per-point (N,) properties; `comments` are single-line header comments
+    (non-ASCII characters escaped, `ascii_comment`)."""
     p = np.asarray(points)
     if p.ndim != 2 or p.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {p.shape}")
@@ -148,11 +149,17 @@ def encode_ply(
     for comment in comments:
         if "\n" in comment or "\r" in comment:
             raise ValueError("PLY comments must be single lines")
-        lines.append(f"comment {comment}".rstrip())
+        lines.append(f"comment {ascii_comment(comment)}".rstrip())
     lines.append(f"element vertex {n}")
     lines += [f"property {kind} {name}" for name, kind in names]
     lines.append("end_header")
     return ("\n".join(lines) + "\n").encode("ascii") + data.tobytes()
+
+
+def ascii_comment(text: str) -> str:
+    """`text` for an ASCII PLY header: other characters (a file name like `scän.ply`)
+    as Python escapes (`sc\\xe4n.ply`)."""
+    return text.encode("ascii", errors="backslashreplace").decode("ascii")
 
 
 def write_ply(

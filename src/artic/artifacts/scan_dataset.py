@@ -180,3 +180,5 @@ class ScanDataset:
             return KinematicTree.from_json(path.read_text())
         except InputError as err:
             raise InputError(f"{path}: {err}") from None
+        except (ValueError, KeyError, TypeError) as err:
+            raise InputError(f"{path}: not a valid kinematic tree ({err})") from None

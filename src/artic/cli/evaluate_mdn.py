@@ -10,13 +10,14 @@ coverage), `examples.png` (true axes green, predicted red).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 from pydantic import Field
 
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.artifacts.formats import write_csv
+from artic.artifacts.manifest import MANIFEST, read_manifest
 from artic.cli.stage_runner import Plan, Stage, available_cpus
 from artic.cli.train_mdn import KIND, MODEL, CategoryRef
 from artic.config.schemas import StageConfig, Strict
@@ -34,7 +35,9 @@ class EvaluateOptions(Strict):
     max_test_images: int | None = Field(None, gt=0)
     icp_images: int = Field(500, ge=0)
     batch_size: int = Field(64, gt=0)
-    levels: tuple[float, ...] = (0.5, 0.9, 0.95)
+    levels: tuple[Annotated[float, Field(gt=0, lt=1)], ...] = Field(
+        (0.5, 0.9, 0.95), min_length=1, description="nominal coverages, each in (0, 1)"
+    )
     examples: int = Field(8, ge=0)
 
 
@@ -42,6 +45,11 @@ class EvaluateMdnConfig(StageConfig):
     category: CategoryRef
     model: str = Field(description="a train-mdn output folder")
     depth: str = Field(description="a render-depth output folder (its test split is used)")
+    objects: str | None = Field(
+        None,
+        description="the generate-dataset folder `depth` was rendered from (the ICP "
+        "baseline's template); None: the one recorded in depth's manifest",
+    )
     evaluate: EvaluateOptions
 
 
@@ -78,7 +86,7 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
         test = DepthSplit(test.depth[:n], test.labels[:n], test.object_id[:n])
     if len(test) == 0 or len(train) == 0:
         raise InputError(f"depth: {inputs['depth']} has no test or no training images")
-    objects = ObjectDataset.open(Path(ds.manifest.inputs["dataset"].path))
+    objects = ObjectDataset.open(inputs["objects"])
     template = objects.template_spec(int(train.object_id[0]))
     icp = IcpBaseline(template, train.labels, predictor.camera)
     result = evaluate(
@@ -204,6 +212,61 @@ def _finalize(
     return stats
 
 
+def recorded_objects(depth: Path) -> tuple[list[Path], str]:
+    """Where the object dataset `depth` was rendered from may lie, most likely first,
+    and its content hash, from depth's manifest. A relative recorded path is relative
+    to the directory render-depth ran in: found from the depth folder's own recorded
+    `out` (when the folder has not moved since), else tried beside the current
+    directory."""
+    manifest = read_manifest(depth, expected_stage="render-depth")
+    record = manifest.inputs.get("dataset")
+    if record is None:
+        raise InputError(f"depth: {depth / MANIFEST} records no dataset input; pass objects=PATH")
+    recorded = Path(record.path)
+    if recorded.is_absolute():
+        return [recorded], record.content_hash
+    candidates: list[Path] = []
+    out = Path(str(manifest.config.get("out", "")))
+    here = depth.resolve()
+    if str(out) not in ("", ".") and not out.is_absolute():
+        n = len(out.parts)
+        if len(here.parts) > n and here.parts[-n:] == out.parts:
+            candidates.append(here.parents[n - 1] / recorded)
+    candidates.append(recorded)
+    return candidates, record.content_hash
+
+
+def _input_paths(cfg: EvaluateMdnConfig) -> dict[str, Path]:
+    """model, depth and the object dataset depth was rendered from (`objects=`, or the
+    one depth's manifest records), checked to be that dataset by its content hash."""
+    depth = Path(cfg.depth)
+    try:
+        candidates, expected = recorded_objects(depth)
+    except InputError as err:
+        message = str(err)
+        raise InputError(message if message.startswith("depth:") else f"depth: {message}") from None
+    if cfg.objects is not None:
+        objects = Path(cfg.objects)
+    else:
+        found = [p for p in candidates if (p / MANIFEST).is_file()]
+        if not found:
+            raise InputError(
+                f"objects: the dataset {depth} was rendered from is not at "
+                f"{candidates[0]}; pass objects=PATH (its generate-dataset folder)"
+            )
+        objects = found[0]
+    try:
+        actual = read_manifest(objects, expected_stage="generate-dataset").content_hash
+    except InputError as err:
+        raise InputError(f"objects: {err}") from None
+    if actual != expected:
+        raise InputError(
+            f"objects: {objects} is not the dataset {depth} was rendered from (content hash "
+            f"{actual[:12]}, depth records {expected[:12]}); pass objects=PATH"
+        )
+    return {"model": Path(cfg.model), "depth": depth, "objects": objects}
+
+
 STAGE: Stage[EvaluateMdnConfig] = Stage(
     name="evaluate-mdn",
     conf="evaluate_mdn",
@@ -211,6 +274,6 @@ STAGE: Stage[EvaluateMdnConfig] = Stage(
     plan=_plan,
     chunk=evaluate_chunk,
     finalize=_finalize,
-    inputs={"model": "train-mdn", "depth": "render-depth"},
-    input_paths=lambda cfg: {"model": Path(cfg.model), "depth": Path(cfg.depth)},
+    inputs={"model": "train-mdn", "depth": "render-depth", "objects": "generate-dataset"},
+    input_paths=_input_paths,
 )

@@ -32,6 +32,7 @@ from artic.artifacts.manifest import LOG
 from artic.artifacts.ply import write_ply
 from artic.cli.hierarchy_output import (
     OutputFolder,
+    check_output_folder,
     draw_hierarchy,
     dumps,
     hierarchy_document,
@@ -137,9 +138,10 @@ def run_segment(
     from artic.hierarchy.infer import required_points, segment_scan
 
     scan = read_scan(scan_path, opts)
+    out = out or default_out(scan_path, "segment")
+    check_output_folder(out, "segment")  # every input before the models are loaded
     segmenter, model_path = load_segmenter_for(model, opts)
     require_points(scan, required_points(segmenter.model))
-    out = out or default_out(scan_path, "segment")
     cfg = _config(segmenter, None, opts)
     folder = OutputFolder(
         out,
@@ -232,16 +234,17 @@ def run_build_hierarchy(
     from artic.hierarchy.infer import build_hierarchy
 
     scan = read_scan(parts_path, opts)
-    labeller, model_path = load_labeller_for(model, opts)
     if scan.part_id is None:
         raise InputError(
             f"{parts_path}: no part_id property; segment the scan first (artic segment)"
         )
     if scan.part_id.min() < 0:
         raise InputError(f"{parts_path}: part_id must be >= 0 for every point")
+    out = out or default_out(parts_path, "build-hierarchy")
+    check_output_folder(out, "build-hierarchy")  # every input before the model is loaded
+    labeller, model_path = load_labeller_for(model, opts)
     input_ids, inverse = np.unique(scan.part_id, return_inverse=True)
     part_id = inverse.astype(np.int64)
-    out = out or default_out(parts_path, "build-hierarchy")
     cfg = _config(None, labeller, opts)
     keep = _geometry_subset(part_id, opts)
     work, work_id = scan.points[keep], part_id[keep]
@@ -295,10 +298,11 @@ def run_infer_hierarchy(
     from artic.hierarchy.infer import infer_hierarchy, required_points
 
     scan = read_scan(scan_path, opts)
+    out = out or default_out(scan_path, "infer-hierarchy")
+    check_output_folder(out, "infer-hierarchy")  # every input before the models are loaded
     segmenter, seg_path = load_segmenter_for(segmenter_model, opts)
     labeller, lab_path = load_labeller_for(labeller_model, opts)
     require_points(scan, required_points(segmenter.model))
-    out = out or default_out(scan_path, "infer-hierarchy")
     cfg = _config(segmenter, labeller, opts)
     models = {"segmenter": seg_path, "labeller": lab_path}
     folder = OutputFolder(

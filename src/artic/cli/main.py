@@ -6,20 +6,20 @@ pybullet, hydra) only when they run, so `artic --help` answers quickly.
 
 from __future__ import annotations
 
-import functools
 import importlib
 import logging
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import typer
 
 from artic import __version__
+from artic.cli.failures import NoTracebacks, OneLineErrors, handle_errors
 
 app = typer.Typer(
     name="artic",
+    cls=OneLineErrors,
     help="Structured robotic manipulation: articulated-object datasets, depth rendering, "
     "kinematic models. Each subcommand is a stage: it reads files and writes one output "
     "folder with a manifest.json. Config overrides are Hydra-style KEY=VALUE arguments.",
@@ -44,7 +44,6 @@ STAGE_MODULES: dict[str, str] = {
     "evaluate-hierarchy": "artic.cli.evaluate_hierarchy",
 }
 
-F = TypeVar("F", bound=Callable[..., Any])
 _OVERRIDES = typer.Argument(None, help="Hydra overrides, e.g. category=drawer dataset.objects=50")
 _CFG = typer.Option(False, "--cfg", help="Print the resolved config and exit.")
 _FORCE = typer.Option(False, "--force", help="Recompute even if the output is up to date.")
@@ -53,7 +52,15 @@ _TASK = typer.Option(None, "--task", help="Chapter 5 task: drawer, microwave, tb
 
 
 def _with_task(overrides: list[str] | None, task: str | None) -> list[str]:
-    """`--task NAME` is shorthand for the Hydra override `task=NAME`."""
+    """`--task NAME` is shorthand for the Hydra override `task=NAME`; both naming
+    different tasks is bad input (exit 2) rather than one silently winning."""
+    from artic.errors import InputError
+
+    given = [o.partition("=")[2] for o in overrides or [] if o.partition("=")[0] == "task"]
+    if task and any(g != task for g in given):
+        raise InputError(f"--task {task} and task={given[-1]} name different tasks; give one")
+    if task and given:
+        return list(overrides or [])
     return [*(overrides or []), *([f"task={task}"] if task else [])]
 
 
@@ -68,33 +75,6 @@ def stage_command(command: str, overrides: list[str] | None) -> str:
 def load_stage(command: str) -> Any:
     """The `Stage` behind a subcommand name."""
     return importlib.import_module(STAGE_MODULES[command]).STAGE
-
-
-def handle_errors(fn: F) -> F:
-    """Map failures to exit codes: bad input 2 (one line), Ctrl-C 130, internal 1."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        from artic.cli.stage_runner import InternalError
-        from artic.errors import InputError, Interrupted
-
-        try:
-            return fn(*args, **kwargs)
-        except InputError as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(2) from None
-        except Interrupted as err:
-            typer.echo(str(err), err=True)
-            raise typer.Exit(130) from None
-        except KeyboardInterrupt:
-            typer.echo("interrupted", err=True)
-            raise typer.Exit(130) from None
-        except InternalError as err:
-            where = f" (traceback in {err.log_path})" if err.log_path else ""
-            typer.echo(f"internal error: {err}{where}", err=True)
-            raise typer.Exit(1) from None
-
-    return wrapper  # type: ignore[return-value]
 
 
 def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, force: bool) -> None:
@@ -439,7 +419,13 @@ def _root(
         stream=sys.stderr,
         force=True,
     )
+    for handler in logging.getLogger().handlers:
+        handler.addFilter(NoTracebacks())
 
 
 def main() -> None:
+    # before any subcommand imports NumPy or PyTorch: the same kernels on every CPU
+    from artic.reproducibility import pin_numerics
+
+    pin_numerics()
     app()

@@ -21,18 +21,45 @@ from artic.errors import InputError
 KIND = "kinematics-mdn"
 
 
+#: a depth image (metres) whose median return is farther than this is in millimetres
+MAX_DEPTH_M = 20.0
+
+
+def _first_line(err: BaseException) -> str:
+    lines = str(err).strip().splitlines()
+    return lines[0] if lines else type(err).__name__
+
+
+def _load_npy(path: Path, what: str) -> NDArray[Any]:
+    """An .npy array without pickles; InputError naming the file if it cannot be read
+    (truncated, not an .npy, an object array)."""
+    try:
+        return np.asarray(np.load(path, allow_pickle=False))
+    except (ValueError, OSError, EOFError) as err:
+        raise InputError(f"{path}: not a readable .npy {what} ({_first_line(err)})") from None
+
+
 def read_depth(path: Path) -> NDArray[np.float32]:
     """Depth in metres from `.npy` (float metres) or 16-bit PNG (millimetres)."""
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     if path.suffix.lower() == ".npy":
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as err:
-            raise InputError(f"{path}: not a readable .npy file ({err})") from None
+        data = _load_npy(path, "depth image")
+        if data.dtype.kind in "iu":
+            raise InputError(
+                f"{path}: .npy depth must be float metres, got {data.dtype} (millimetres? "
+                "divide by 1000 and save as float32, or save a 16-bit .png in millimetres)"
+            )
         if data.dtype.kind != "f":
             raise InputError(f"{path}: .npy depth must be float metres, got {data.dtype}")
         depth = data.astype(np.float32)
+        returns = depth[np.isfinite(depth) & (depth > 0)]
+        if returns.size and float(np.median(returns)) > MAX_DEPTH_M:
+            raise InputError(
+                f"{path}: .npy depth must be float metres, but its median is "
+                f"{float(np.median(returns)):.0f} (> {MAX_DEPTH_M:.0f} m: millimetres?); "
+                "divide by 1000"
+            )
     elif path.suffix.lower() == ".png":
         from PIL import Image, UnidentifiedImageError
 
@@ -45,6 +72,8 @@ def read_depth(path: Path) -> NDArray[np.float32]:
                 depth = np.asarray(image, dtype=np.float32) * np.float32(0.001)
         except UnidentifiedImageError:
             raise InputError(f"{path}: not a readable PNG") from None
+        except (OSError, SyntaxError, ValueError, EOFError) as err:  # truncated, corrupt
+            raise InputError(f"{path}: not a readable PNG ({_first_line(err)})") from None
     else:
         raise InputError(
             f"{path}: expected a .npy (metres) or 16-bit .png (millimetres) depth image"
@@ -64,7 +93,9 @@ def read_mask(path: Path, shape: tuple[int, ...]) -> NDArray[np.bool_]:
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     if path.suffix.lower() == ".npy":
-        mask = np.load(path, allow_pickle=False)
+        mask = _load_npy(path, "mask")
+        if mask.dtype.kind not in "biuf":
+            raise InputError(f"{path}: mask must be numeric or boolean, got {mask.dtype}")
     else:
         from PIL import Image, UnidentifiedImageError
 
@@ -73,6 +104,8 @@ def read_mask(path: Path, shape: tuple[int, ...]) -> NDArray[np.bool_]:
                 mask = np.asarray(image)
         except UnidentifiedImageError:
             raise InputError(f"{path}: not a readable mask image") from None
+        except (OSError, SyntaxError, ValueError, EOFError) as err:  # truncated, corrupt
+            raise InputError(f"{path}: not a readable mask image ({_first_line(err)})") from None
     if mask.ndim == 3:
         mask = mask[..., 0]
     if mask.shape != shape:
@@ -91,6 +124,8 @@ def read_camera(path: Path) -> Any:
         return CameraIntrinsics.from_json(path.read_text())
     except json.JSONDecodeError as err:
         raise InputError(f"{path}: not JSON ({err.msg})") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"{path}: not a readable JSON file ({_first_line(err)})") from None
     except ValidationError as err:
         first = err.errors()[0]
         field = ".".join(str(p) for p in first["loc"]) or "camera"
@@ -117,11 +152,6 @@ def predict(
     if category not in CATEGORIES:
         known = ", ".join(sorted(CATEGORIES))
         raise InputError(f"--category: unknown category '{category}' (available: {known})")
-    path = model or Path("artifacts/models/mdn") / category / "model.pt"
-    if not path.is_file():
-        raise InputError(
-            f"{path}: no model for {category}; train one with: artic train-mdn category={category}"
-        )
     depth = read_depth(image)
     cam = read_camera(camera)
     if depth.shape != (cam.height, cam.width):
@@ -130,6 +160,11 @@ def predict(
             f"{image} is {depth.shape[1]}x{depth.shape[0]}"
         )
     object_mask = read_mask(mask, depth.shape) if mask else None
+    path = model or Path("artifacts/models/mdn") / category / "model.pt"
+    if not path.is_file():
+        raise InputError(
+            f"{path}: no model for {category}; train one with: artic train-mdn category={category}"
+        )
     predictor = Predictor.from_payload(load_model_file(path, KIND, category))
     reprojected = cam != predictor.camera
     if object_mask is not None:

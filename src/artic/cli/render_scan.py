@@ -98,9 +98,26 @@ def _ids(ds: ObjectDataset, cfg: RenderScanConfig, chunk: int) -> list[int]:
 
 
 def _plan(cfg: RenderScanConfig, inputs: dict[str, Path]) -> Plan:
-    n = len(_dataset(str(inputs["dataset"])).rows)
+    ds = _dataset(str(inputs["dataset"]))
+    check_configurations(ds, cfg)
+    n = len(ds.rows)
     size = cfg.render.objects_per_shard
     return Plan([min(size, n - c * size) for c in range(math.ceil(n / size))], "objects")
+
+
+def check_configurations(ds: ObjectDataset, cfg: RenderScanConfig) -> None:
+    """InputError naming render.configurations when an object's poses.json has fewer
+    poses than asked for (the manifest would promise more clouds than were rendered)."""
+    n = cfg.render.configurations
+    for row in ds.rows:
+        if ds.has(row.object_id, POSES):
+            available = len(ds.poses(row.object_id).array())
+            if available < n:
+                raise InputError(
+                    f"config field render.configurations: {n} poses asked for, but "
+                    f"{ds.root / object_dir(row.object_id) / POSES} has {available}; "
+                    f"set render.configurations <= {available}"
+                )
 
 
 def object_poses(
@@ -122,7 +139,14 @@ def object_poses(
         where = ds.root / object_dir(object_id) / POSES
         raise InputError(f"{where}: joint_names {names} are not the URDF's movable {expected}")
     order = [names.index(name) for name in expected]
-    return poses.array()[:n, order], "poses.json"
+    available = poses.array()
+    if len(available) < n:
+        where = ds.root / object_dir(object_id) / POSES
+        raise InputError(
+            f"config field render.configurations: {n} poses asked for, but {where} has "
+            f"{len(available)}; set render.configurations <= {len(available)}"
+        )
+    return available[:n, order], "poses.json"
 
 
 def object_motion_types(
