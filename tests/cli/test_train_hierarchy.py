@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -100,6 +101,47 @@ def test_interrupted_training_resumes_to_the_same_weights(
     assert (out / "metrics.csv").read_text().splitlines()[0] == (
         trained / "metrics.csv"
     ).read_text().splitlines()[0]
+
+
+def _assert_identical(a: Any, b: Any) -> None:
+    """Equal values of the same types; arrays of the same dtype and bytes."""
+    assert type(a) is type(b), (type(a), type(b))
+    if isinstance(a, np.ndarray):
+        assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+    elif dataclasses.is_dataclass(a):
+        for f in dataclasses.fields(a):
+            _assert_identical(getattr(a, f.name), getattr(b, f.name))
+    elif isinstance(a, tuple | list):
+        assert len(a) == len(b)
+        for x, y in zip(a, b, strict=True):
+            _assert_identical(x, y)
+    else:
+        assert a == b or (a != a and b != b), (a, b)
+
+
+def test_prepared_graph_cache_is_safe_and_exact(tmp_path: Path) -> None:
+    """The resume folder's prepared graphs: tensors and plain data (weights_only), read
+    back as the same objects (dtypes, numpy scalars); a corrupt cache exits 2 by name."""
+    from artic.artifacts.model_file import load_torch_file, save_torch_file
+    from artic.cli.train_hierarchy import _decode, _encode
+    from artic.errors import InputError
+    from artic.hierarchy.graph import PartGraphConfig
+    from artic.hierarchy.types import KinematicTree
+    from box_clouds import box_cloud
+
+    tree = KinematicTree(3, 0, ((0, 1), (0, 2)), (0, 1, 2), ("revolute", "prismatic"))
+    points, part = box_cloud(900)
+    graph_cfg = PartGraphConfig(points_per_node=16)
+    example = make_example(points, part, tree, np.random.default_rng(0), graph_cfg)
+    assert example is not None
+    cache = tmp_path / "train.pt"
+    save_torch_file(cache, {"examples": [[_encode(v) for v in example]], "skipped": 2})
+    stored = load_torch_file(cache, "checkpoint")
+    back = type(example)(*(_decode(v) for v in stored["examples"][0]))
+    _assert_identical(back, example)
+    cache.write_bytes(cache.read_bytes()[:100])
+    with pytest.raises(InputError, match=f"{cache}: not a readable checkpoint"):
+        load_torch_file(cache, "checkpoint")
 
 
 def test_bad_inputs_exit_2(tiny: TinyScans, tmp_path: Path) -> None:

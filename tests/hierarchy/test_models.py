@@ -119,7 +119,7 @@ def test_wrong_kind_or_category_refused_by_name(tmp_path: Path) -> None:
 def test_mismatched_weights_refused(tmp_path: Path) -> None:
     path = tmp_path / "model.pt"
     save_segmenter(path, "lamp", PartSegmentationNet(TINY_SEG), InferenceConfig(), {})
-    payload = torch.load(path, weights_only=False)
+    payload = torch.load(path, weights_only=True)
     payload["hparams"]["segmentation"] = segmentation_config_to_dict(
         dataclasses.replace(TINY_SEG, head_width=12)
     )

@@ -102,17 +102,19 @@ class SearchOutput:
             dmp = DMPFile.from_json_dict(json.loads(path.read_text()))
             k_p = self.cfg.pi2cma_policy.k_p
             return dmp_actor(dmp.params, dmp.cfg, task.control_dt, task.horizon, k_p)
-        import torch
-
+        from artic.artifacts.model_file import load_torch_file
         from artic.learning.rollout import gaussian_actor
         from artic.policies.gaussian_mlp import GaussianMLPPolicy
 
         path = verify_file(self.folder, self.manifest, f"{seed_dir(index)}/policy.pt")
-        saved = torch.load(path, map_location="cpu", weights_only=False)
-        h = saved["hparams"]
-        policy = GaussianMLPPolicy(h["obs_dim"], h["act_dim"], tuple(h["hidden"]),
-                                   min_log_std=h["min_log_std"])  # fmt: skip
-        policy.load_state_dict(saved["state_dict"])
+        saved = load_torch_file(path, "policy file")  # weights_only: tensors and plain data
+        try:
+            h = saved["hparams"]
+            policy = GaussianMLPPolicy(h["obs_dim"], h["act_dim"], tuple(h["hidden"]),
+                                       min_log_std=h["min_log_std"])  # fmt: skip
+            policy.load_state_dict(saved["state_dict"])
+        except (KeyError, TypeError, ValueError, RuntimeError) as err:
+            raise InputError(f"{path}: policy does not load ({type(err).__name__})") from None
         return gaussian_actor(policy)
 
 
