@@ -15,10 +15,15 @@
 5. Chapter 5: simulated control steps per second of each task's environment (random
    actions) and the median planning time per demo of `artic plan-demos` (10 demos, one
    worker, the default config; target under 2 s).
+6. Numerics: the Chapter 3 MDN's training step and batch forward (64x64 crops, width 32,
+   two threads) with the kernels artic pins (`artic.reproducibility`) and with each
+   library's own choice for this CPU, in fresh processes, interleaved: the price of the
+   same bytes on every CPU.
 
+The benchmarks run with the kernels pinned, as the `artic` command does.
 Prints a Markdown report and writes bench/results/latest.json.
 Usage: python bench/run_all.py [--objects 550 2200] [--scenes 24] [--repeats 5]
-       [--only backends|e2e|network|hierarchy|planning]
+       [--only backends|e2e|network|hierarchy|planning|numerics]
 (--scenes: objects over the three categories, each rendered at 16 configurations)
 """
 
@@ -35,10 +40,14 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+from artic.reproducibility import pin_numerics
 
-from artic.objects.model import ArticulatedObject
-from artic.render.backend import RenderedImage
+pin_numerics()  # as the artic command does, before NumPy loads
+
+import numpy as np  # noqa: E402
+
+from artic.objects.model import ArticulatedObject  # noqa: E402
+from artic.render.backend import RenderedImage  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 ARTIC = [sys.executable, "-m", "artic", "-q"]
@@ -349,13 +358,38 @@ def planning_benchmark(tmp: Path) -> list[dict[str, object]]:
     return rows
 
 
+def numerics_benchmark(repeats: int) -> list[dict[str, object]]:
+    """Pinned and native kernels, `repeats` interleaved fresh processes each: medians and
+    the median of the per-repeat ratios (bench/numerics_child.py)."""
+    runs: dict[str, list[dict[str, object]]] = {"pinned": [], "native": []}
+    for _ in range(repeats):
+        for mode in runs:
+            child = [sys.executable, str(ROOT / "bench" / "numerics_child.py"), mode]
+            out = subprocess.run(child, check=True, capture_output=True, text=True).stdout
+            runs[mode].append(json.loads(out))
+    rows = []
+    for key in ("train_images_per_s", "forward_images_per_s"):
+        pinned = [float(r[key]) for r in runs["pinned"]]  # type: ignore[arg-type]
+        native = [float(r[key]) for r in runs["native"]]  # type: ignore[arg-type]
+        rows.append({
+            "measure": key, "pinned": round(statistics.median(pinned), 1),
+            "native": round(statistics.median(native), 1),
+            "pinned_over_native": round(
+                statistics.median(p / n for p, n in zip(pinned, native, strict=True)), 3),
+            "same_weights_every_run": len({r["weights_sha256"] for r in runs["pinned"]}) == 1,
+        })  # fmt: skip
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", type=int, nargs="+", default=[550, 2200])
     parser.add_argument("--scenes", type=int, default=24)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument(
-        "--only", choices=["backends", "e2e", "network", "hierarchy", "planning"], default=None
+        "--only",
+        choices=["backends", "e2e", "network", "hierarchy", "planning", "numerics"],
+        default=None,
     )
     parser.add_argument("--e2e-child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -364,12 +398,17 @@ def main() -> None:
         return
     with tempfile.TemporaryDirectory(prefix="artic-bench-") as tmp_dir:
         tmp = Path(tmp_dir)
-        run = {args.only} if args.only else {"backends", "e2e", "network", "hierarchy", "planning"}
+        run = (
+            {args.only}
+            if args.only
+            else {"backends", "e2e", "network", "hierarchy", "planning", "numerics"}
+        )
         backends = backend_benchmark(args.scenes, args.repeats, tmp) if "backends" in run else []
         e2e = [end_to_end(n, tmp) for n in sorted(args.objects)] if "e2e" in run else []
         network = network_benchmark(tmp) if "network" in run else []
         hierarchy = [hierarchy_benchmark(tmp)] if "hierarchy" in run else []
         planning = planning_benchmark(tmp) if "planning" in run else []
+        numerics = numerics_benchmark(args.repeats) if "numerics" in run else []
     report = {
         "machine": {
             "cpus": len(__import__("os").sched_getaffinity(0)),
@@ -381,6 +420,7 @@ def main() -> None:
         "network": network,
         "hierarchy": hierarchy,
         "planning": planning,
+        "numerics": numerics,
     }
     out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -439,6 +479,13 @@ def main() -> None:
         planned = f"{r['demos_planned']}/{r['demos']}"
         print(f"| {r['task']} | {r['env_steps_per_s']} | {planned} | {r['median_planning_s']} "
               f"| {r['max_planning_s']} | {r['plan_demos_wall_s']} |")  # fmt: skip
+
+    print()
+    print("| measure | pinned | native | pinned / native | same weights every pinned run |")
+    print("|---|---|---|---|---|")
+    for r in numerics:
+        print(f"| {r['measure']} | {r['pinned']} | {r['native']} | {r['pinned_over_native']} "
+              f"| {r['same_weights_every_run']} |")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -4,9 +4,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
+from artic.reproducibility import numerics_loaded_too_early, pin_numerics
 
-from cli_runner import run_cli
+# the tests run the CLI in this process: pin the numerical kernels as `artic` does, before
+# NumPy or PyTorch is imported (artic.reproducibility)
+assert not numerics_loaded_too_early(), numerics_loaded_too_early()
+pin_numerics()
+
+import pytest  # noqa: E402
+
+from cli_runner import run_cli  # noqa: E402
 
 
 @pytest.fixture(scope="session")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ import torch
 from PIL import Image
 
 from artic.artifacts.depth_dataset import DepthDataset
+from artic.artifacts.manifest import read_manifest
 from artic.artifacts.model_file import load_model_file, save_model_file
 from artic.cli.train_mdn import KIND
 from artic.errors import InputError
@@ -31,7 +33,7 @@ def test_train_mdn_writes_model_metrics_and_card(tiny_model):
     for name in ("model.pt", "metrics.csv", "model.json", "model_card.md", "manifest.json"):
         assert (tiny_model / name).is_file(), name
     rows = (tiny_model / "metrics.csv").read_text().splitlines()
-    assert rows[0] == "epoch,train_nll,val_nll,seconds,lr" and len(rows) == 3
+    assert rows[0] == "epoch,train_nll,val_nll,lr" and len(rows) == 3
     lr = [float(row.split(",")[-1]) for row in rows[1:]]
     assert lr[0] > lr[1] > 0, "cosine schedule (conf/train_mdn: train.schedule)"
     payload = load_model_file(tiny_model / "model.pt", KIND, "microwave")
@@ -221,3 +223,45 @@ def test_evaluate_mdn_writes_table_3_1_and_calibration(tiny_model, tiny_depth, t
     assert calibration[0].startswith("nominal,") and len(calibration) == 20
     for name in ("errors.png", "calibration.png", "examples.png", "errors.csv"):
         assert (out / name).stat().st_size > 0
+
+
+def test_evaluate_mdn_reads_the_objects_as_a_hashed_input(
+    tiny_model, tiny_objects, tmp_path, monkeypatch
+):
+    """The object dataset behind the depth folder (the ICP template) is a declared input:
+    found from the depth manifest relative to where render-depth ran, hashed, and a
+    different dataset at that path is refused by name instead of used."""
+    work, elsewhere = tmp_path / "work dir", tmp_path / "elsewhere"
+    shutil.copytree(tiny_objects, work / "objs")
+    elsewhere.mkdir()
+    monkeypatch.chdir(work)
+    code, _, err = run_cli("render-depth", "debug=tiny", "dataset=objs", "out=depth")
+    assert code == 0, err
+    monkeypatch.chdir(elsewhere)  # the recorded "objs" is relative to work/, not here
+    args = [
+        "evaluate", "mdn", "debug=tiny", "category=microwave", f"model={tiny_model}",
+        f"depth={work / 'depth'}", "evaluate.icp_images=1", "evaluate.examples=0",
+        "evaluate.max_test_images=4",
+    ]  # fmt: skip
+    code, _, err = run_cli(*args, "out=report")
+    assert code == 0, err
+    manifest = read_manifest(elsewhere / "report")
+    assert manifest.inputs["objects"].path == str(work / "objs")
+    assert manifest.inputs["objects"].content_hash == read_manifest(tiny_objects).content_hash
+    # the same dataset elsewhere, named explicitly, is the same input: up to date
+    code, out, err = run_cli(*args, "out=report", f"objects={tiny_objects}")
+    assert code == 0 and "up to date" in out + err, err
+    # another dataset at the recorded path: exit 2 naming it, nothing written
+    shutil.rmtree(work / "objs")
+    code, _, err = run_cli(
+        "generate-dataset", "debug=tiny", "category=microwave", "seed=7", f"out={work / 'objs'}"
+    )
+    assert code == 0, err
+    code, _, err = run_cli(*args, "out=report2")
+    assert code == 2
+    assert err.startswith("error: objects: ") and str(work / "objs") in err
+    assert "is not the dataset" in err and len(err.strip().splitlines()) == 1
+    assert not (elsewhere / "report2").exists()
+    shutil.rmtree(work / "objs")
+    code, _, err = run_cli(*args, "out=report2")
+    assert code == 2 and "objects=PATH" in err and "objs" in err

@@ -2,8 +2,9 @@
 
 A manifest records the stage, the resolved config and its hash, each input's content
 hash, every output file with its size and sha256, package versions, the seed, timings
-and status. `content_hash` (the hash of the output listing) is what downstream stages
-record as their input hash, so regenerating identical data does not invalidate them.
+and status. `content_hash` (the hash of the output listing, timing files left out) is
+what downstream stages record as their input hash, so regenerating identical data does
+not invalidate them.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 from artic import __version__
 from artic.artifacts.hashing import sha256_file, sha256_json
 from artic.errors import InputError
+from artic.reproducibility import numerics_record
 
 MANIFEST = "manifest.json"
 LOG = "artic.log"
@@ -72,8 +74,10 @@ class Manifest(BaseModel):
 
 
 def package_versions() -> dict[str, str]:
-    """Versions of Python, artic and the numerical packages that shape the outputs."""
-    out = {"python": platform.python_version(), "artic": __version__}
+    """Versions of Python, artic and the numerical packages that shape the outputs, and
+    the kernel pins in force (`artic.reproducibility`)."""
+    out = {"python": platform.python_version(), "artic": __version__,
+           "numerics": numerics_record()}  # fmt: skip
     for name in _TRACKED_PACKAGES:
         try:
             out[name] = metadata.version(name)
@@ -98,8 +102,20 @@ def list_outputs(folder: Path) -> dict[str, FileRecord]:
     return records
 
 
+#: output files that hold wall-clock times (documented in formats.md): listed and verified
+#: like every output, but left out of `content_hash`, so a rerun that reproduces the same
+#: data does not invalidate the stages downstream
+TIMING_FILES = frozenset({"timings.csv", "timings.json"})
+
+
+def is_timing_file(rel: str) -> bool:
+    """Whether output `rel` (a POSIX relative path) is a timing file, by its file name."""
+    return rel.rsplit("/", 1)[-1] in TIMING_FILES
+
+
 def outputs_hash(outputs: dict[str, FileRecord]) -> str:
-    return sha256_json({k: v.sha256 for k, v in outputs.items()})
+    """The content hash: sha256 of the listing of every output but the timing files."""
+    return sha256_json({k: v.sha256 for k, v in outputs.items() if not is_timing_file(k)})
 
 
 def read_manifest(folder: Path, expected_stage: str | None = None) -> Manifest:

@@ -17,15 +17,17 @@ Algorithms (`algorithm`, `auto` picks the thesis' choice for the task):
 
 Each seed is one chunk (shardable, resumable); inside a chunk, the search state is
 checkpointed after every update in the work area, so Ctrl-C and the same command again
-continue from the last finished update. Update 0 is the initial policy; rollouts of
-update k of run seed s are drawn from (s, k). After each update the mean policy (no
-exploration noise) is evaluated from `eval_rollouts` fixed start states; its return R
-gives the normalised return 1 - R / R_idle, where R_idle is the return of a robot that
-keeps still from the same starts (0: no better than doing nothing, 1: zero cost).
+continue from the last finished update (DAPG's `state.pt` and `policy.pt` hold tensors
+and plain data only, read with `weights_only=True`; a corrupt one is an InputError naming
+it). Update 0 is the initial policy; rollouts of update k of run seed s are drawn from
+(s, k). After each update the mean policy (no exploration noise) is evaluated from
+`eval_rollouts` fixed start states; its return R gives the normalised return
+1 - R / R_idle, where R_idle is the return of a robot that keeps still from the same
+starts (0: no better than doing nothing, 1: zero cost).
 
 Outputs: `learning_curve.csv` (seed, update, rollouts (done so far), mean_return and
 normalised_return and success_rate (of the mean policy), train_return (mean over the
-update's exploration rollouts; nan at update 0)), `timing.csv` (seed, update, seconds:
+update's exploration rollouts; nan at update 0)), `timings.csv` (seed, update, seconds:
 wall time of the update's rollouts and step, kept apart so the curve is reproducible
 byte for byte), `seeds/seed_NNN/` with the final policy (`dmp.json` in fit-dmp's
 format, or `policy.pt`), and `summary.json`.
@@ -54,7 +56,7 @@ from artic.sim.tasks import TaskConfig
 log = logging.getLogger("artic")
 
 CURVE = "learning_curve.csv"
-TIMING = "timing.csv"
+TIMING = "timings.csv"
 CURVE_COLUMNS = ["seed", "update", "rollouts", "mean_return", "normalised_return",
                  "success_rate", "train_return"]  # fmt: skip
 N_JOINTS = 7
@@ -331,6 +333,7 @@ def _run_dapg(cfg: PolicySearchConfig, inputs: dict[str, Path], index: int, env:
               resume: Path, out: Path) -> list[list[Any]]:  # fmt: skip
     import torch
 
+    from artic.artifacts.model_file import load_torch_file, plain, save_torch_file
     from artic.learning.npg import NPG, NPGConfig
     from artic.learning.rollout import gaussian_actor, rollout_seeds, rollouts, torch_generator
     from artic.policies.gaussian_mlp import BCConfig, GaussianMLPPolicy, behaviour_clone
@@ -350,8 +353,8 @@ def _run_dapg(cfg: PolicySearchConfig, inputs: dict[str, Path], index: int, env:
     npg = NPG(policy, NPGConfig(**m.npg.model_dump()), demos, seed)
     evaluator = _Evaluator(env, seed, cfg.eval_rollouts)
     state_file = resume / "state.pt"
-    if state_file.is_file():
-        state = torch.load(state_file, weights_only=False)
+    if state_file.is_file():  # weights_only; a corrupt state file is an InputError naming it
+        state = load_torch_file(state_file, "checkpoint")
         npg.load_state_dict(state["npg"])
         rows = state["rows"]
     else:
@@ -361,8 +364,8 @@ def _run_dapg(cfg: PolicySearchConfig, inputs: dict[str, Path], index: int, env:
         rows = [evaluator.row(index, 0, 0, gaussian_actor(policy), float("nan"), 0.0)]
 
     def checkpoint() -> None:
-        torch.save({"npg": npg.state_dict(), "rows": rows}, state_file.with_suffix(".tmp"))
-        state_file.with_suffix(".tmp").replace(state_file)
+        rows[:] = plain(rows)  # numpy scalars as Python ones, as a resumed run reads them
+        save_torch_file(state_file, {"npg": npg.state_dict(), "rows": rows})
 
     checkpoint()
     for k in range(len(rows), cfg.updates + 1):
@@ -374,8 +377,8 @@ def _run_dapg(cfg: PolicySearchConfig, inputs: dict[str, Path], index: int, env:
                             step.mean_return, seconds)  # fmt: skip
         rows.append(row)
         checkpoint()
-    torch.save({"hparams": policy.hparams, "state_dict": policy.state_dict(),
-                "task": cfg.task.name}, out / "policy.pt")  # fmt: skip
+    save_torch_file(out / "policy.pt", {"hparams": policy.hparams,
+                    "state_dict": policy.state_dict(), "task": cfg.task.name})  # fmt: skip
     return rows
 
 

@@ -9,8 +9,10 @@ out for validation. The PointNet node encoder is pre-trained as a point autoenco
 (Chamfer distance, Nesterov SGD), then the GraphLabellingNet trains with Adam.
 
 One chunk: the whole run, checkpointed after every epoch of either phase in the work
-area's resume folder (with the prepared graphs), so an interrupted run resumes with the
-same result. Outputs: `model.pt` (kind "hierarchy-gnn", best validation loss weights,
+area's resume folder (with the prepared graphs, as tensors and plain data: no pickles),
+so an interrupted run resumes with the same result; both are read with
+`weights_only=True`, and a corrupt one is an InputError naming it. Outputs: `model.pt`
+(kind "hierarchy-gnn", best validation loss weights,
 `artic.hierarchy.models.load_labeller`), `metrics.csv` (one row per epoch),
 `pretrain.csv`, `model.json` and `model_card.md` (validation Table 4.2 metrics with
 ground-truth segmentation).
@@ -21,8 +23,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import os
-import pickle
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -30,11 +30,12 @@ from pydantic import Field
 
 from artic.artifacts.formats import write_csv, write_json
 from artic.artifacts.scan_dataset import ScanDataset
+from artic.artifacts.timings import data_columns, write_epoch_timings
 from artic.artifacts.workdir import WorkDir
-from artic.cli.stage_runner import Plan, Stage, available_cpus
+from artic.cli.stage_runner import Plan, Stage
 from artic.cli.train_mdn import training_device
 from artic.cli.train_segmenter import CategoryRef, DataConfig, training_objects
-from artic.config.schemas import StageConfig, Strict
+from artic.config.schemas import TRAIN_THREADS_HELP, Strict, TrainingStageConfig
 from artic.errors import InputError
 
 if TYPE_CHECKING:
@@ -79,9 +80,10 @@ class TrainSection(Strict):
     weight_decay: float = Field(0.0, ge=0)
     patience: int = Field(10, gt=0, description="epochs without a better val loss")
     device: Literal["auto", "cpu", "cuda"] = "auto"
+    threads: int = Field(2, ge=1, description=TRAIN_THREADS_HELP)
 
 
-class TrainHierarchyConfig(StageConfig):
+class TrainHierarchyConfig(TrainingStageConfig):
     category: CategoryRef
     scans: str = Field(description="a render-scan output folder of the category")
     graph: GraphSection
@@ -129,18 +131,55 @@ def load_examples(
 def _cached(
     ds: ScanDataset, objects: list[int], cfg: TrainHierarchyConfig, cache: Path
 ) -> tuple[list[LabelledGraph], int]:
-    """`load_examples`, pickled in the resume folder (our own file, specific to the config
-    and input hashes) on first use."""
+    """`load_examples`, stored in the resume folder (specific to the config and input
+    hashes) on first use: a torch file of tensors and plain data (`_encode`), read with
+    `weights_only=True`; a corrupt one is an InputError naming it."""
+    from artic.artifacts.model_file import load_torch_file, save_torch_file
+    from artic.hierarchy.fit_labeller import LabelledGraph
+
     if cache.is_file():
-        with cache.open("rb") as f:
-            stored: tuple[list[LabelledGraph], int] = pickle.load(f)
-            return stored
-    result = load_examples(ds, objects, cfg)
-    tmp = cache.with_name(cache.name + ".tmp")
-    with tmp.open("wb") as f:
-        pickle.dump(result, f)
-    os.replace(tmp, cache)
-    return result
+        stored = load_torch_file(cache, "checkpoint")
+        try:
+            examples = [LabelledGraph(*(_decode(v) for v in e)) for e in stored["examples"]]
+            return examples, int(stored["skipped"])
+        except (KeyError, TypeError, ValueError) as err:
+            raise InputError(f"{cache}: not a readable checkpoint ({err})") from None
+    examples, skipped = load_examples(ds, objects, cfg)
+    save_torch_file(cache, {"examples": [[_encode(v) for v in e] for e in examples],
+                            "skipped": skipped})  # fmt: skip
+    return examples, skipped
+
+
+def _encode(value: Any) -> Any:
+    """A training example's parts (dataclasses of numpy arrays and scalars, tuples) as
+    tensors and plain data that `_decode` turns back into equal objects of the same types
+    (arrays keep their dtype, numpy scalars stay numpy scalars)."""
+    import numpy as np
+    import torch
+
+    if isinstance(value, np.ndarray | np.generic):
+        return {"numpy": torch.from_numpy(np.array(value)), "scalar": isinstance(value, np.generic)}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = {f.name: _encode(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return {"dataclass": type(value).__name__, "fields": fields}
+    if type(value) in (tuple, list):
+        return type(value)(_encode(v) for v in value)
+    return value
+
+
+def _decode(value: Any) -> Any:
+    from artic.hierarchy import types
+
+    if isinstance(value, dict) and "numpy" in value:
+        array = value["numpy"].numpy()
+        return array[()] if value["scalar"] else array
+    if isinstance(value, dict) and "dataclass" in value:
+        known = (types.PartGraph, types.GraphLabels, types.KinematicTree, types.JointAxis)
+        cls: Any = {c.__name__: c for c in known}[value["dataclass"]]
+        return cls(**{k: _decode(v) for k, v in value["fields"].items()})
+    if type(value) in (tuple, list):
+        return type(value)(_decode(v) for v in value)
+    return value
 
 
 def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
@@ -148,6 +187,7 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     import numpy as np
     import torch
 
+    from artic.artifacts.model_file import load_torch_file, save_torch_file
     from artic.hierarchy.fit_labeller import (
         LabellerFitConfig,
         LabellerFitState,
@@ -161,13 +201,13 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     from artic.hierarchy.graph import PartGraphConfig
     from artic.hierarchy.models import save_labeller
 
-    torch.set_num_threads(cfg.runtime.threads or available_cpus())
+    torch.set_num_threads(cfg.train.threads)
     device = training_device(cfg.train.device)
     ds = ScanDataset.open_category(inputs["scans"], cfg.category.name)
     split = training_objects(ds, cfg.data)
     resume = WorkDir(Path(cfg.out)).resume_dir("train-hierarchy")
-    train, skipped_train = _cached(ds, split.train, cfg, resume / "train.pkl")
-    val, skipped_val = _cached(ds, split.val, cfg, resume / "val.pkl")
+    train, skipped_train = _cached(ds, split.train, cfg, resume / "train.pt")
+    val, skipped_val = _cached(ds, split.val, cfg, resume / "val.pt")
     log.info("train-hierarchy: %d training and %d validation graphs", len(train), len(val))
 
     m, p, t = cfg.model, cfg.pretrain, cfg.train
@@ -183,8 +223,8 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     last = resume / "last.pt"
     state = LabellerFitState()
-    if last.is_file():
-        saved = torch.load(last, map_location=device, weights_only=False)
+    if last.is_file():  # weights_only; a corrupt checkpoint is an InputError naming it
+        saved = load_torch_file(last, "checkpoint", map_location=device)
         autoencoder.load_state_dict(saved["autoencoder"])  # shares the encoder with model
         model.load_state_dict(saved["model"])
         ae_optimizer.load_state_dict(saved["ae_optimizer"])
@@ -196,8 +236,7 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
             "autoencoder": autoencoder.state_dict(), "model": model.state_dict(),
             "ae_optimizer": ae_optimizer.state_dict(), "optimizer": optimizer.state_dict(),
         }  # fmt: skip
-        torch.save({**payload, "state": s.to_dict()}, last.with_suffix(".tmp"))
-        os.replace(last.with_suffix(".tmp"), last)
+        save_torch_file(last, {**payload, "state": s.to_dict()})
 
     fit_cfg = LabellerFitConfig(
         p.epochs, p.batch_size, p.lr, p.momentum, t.epochs, t.batch_size, t.lr,
@@ -235,13 +274,14 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
         "val_metrics_gt_segmentation": dataclasses.asdict(scores),
     }
     save_labeller(tmp / MODEL, cfg.category.name, model, graph_cfg, meta)
-    columns = list(state.history[0]) if state.history else ["epoch"]
+    columns = data_columns(state.history, ["epoch"])
     write_csv(tmp / METRICS, columns, [[h[c] for c in columns] for h in state.history])
     write_csv(
         tmp / PRETRAIN_METRICS,
-        ["epoch", "chamfer", "seconds"],
-        [[h[c] for c in ("epoch", "chamfer", "seconds")] for h in state.pretrain_history],
+        ["epoch", "chamfer"],
+        [[h[c] for c in ("epoch", "chamfer")] for h in state.pretrain_history],
     )
+    write_epoch_timings(tmp, {"pretrain": state.pretrain_history, "train": state.history})
     info = {k: v for k, v in meta.items() if not k.endswith("_objects")}
     write_json(tmp / "model.json", info | {
         "network": dataclasses.asdict(net_cfg), "graph": cfg.graph.model_dump(),

@@ -1,7 +1,9 @@
 """`artic train-mdn`: train the mixture density network of one category (section 3.2).
 
 One chunk: the whole training run, checkpointed after every epoch in the work area's
-resume folder, so an interrupted run continues from its last finished epoch. Outputs:
+resume folder, so an interrupted run continues from its last finished epoch. The
+checkpoint is read with `weights_only=True`; a corrupt one is an InputError naming it
+(exit 2: delete it or use `--force` to start over), never silently discarded. Outputs:
 `model.pt` (best validation NLL weights, target codec, training camera), `metrics.csv`
 (one row per epoch), `model.json` and `model_card.md`.
 """
@@ -9,7 +11,6 @@ resume folder, so an interrupted run continues from its last finished epoch. Out
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any, Literal
 
@@ -17,9 +18,10 @@ from pydantic import Field
 
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.artifacts.formats import write_csv, write_json
+from artic.artifacts.timings import write_epoch_timings
 from artic.artifacts.workdir import WorkDir
-from artic.cli.stage_runner import Plan, Stage, available_cpus
-from artic.config.schemas import StageConfig, Strict
+from artic.cli.stage_runner import Plan, Stage
+from artic.config.schemas import TRAIN_THREADS_HELP, Strict, TrainingStageConfig
 from artic.errors import InputError
 
 KIND = "kinematics-mdn"
@@ -54,10 +56,11 @@ class TrainConfig(Strict):
     val_every: int = Field(10, ge=2)
     max_train_objects: int | None = Field(None, gt=0)
     device: Literal["auto", "cpu", "cuda"] = "auto"
+    threads: int = Field(2, ge=1, description=TRAIN_THREADS_HELP)
     channels_last: bool = True
 
 
-class TrainMdnConfig(StageConfig):
+class TrainMdnConfig(TrainingStageConfig):
     category: CategoryRef
     depth: str = Field(description="a render-depth output folder of the category")
     model: ModelConfig
@@ -73,7 +76,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     """The training run; writes model.pt, metrics.csv into tmp."""
     import torch
 
-    from artic.artifacts.model_file import save_model_file
+    from artic.artifacts.model_file import load_torch_file, save_model_file, save_torch_file
     from artic.geometry.camera import CameraIntrinsics
     from artic.kinematics.data import load_split
     from artic.kinematics.mdn import KinematicsMDN
@@ -81,7 +84,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     from artic.kinematics.targets import TargetCodec
     from artic.kinematics.train import FitConfig, FitState, fit
 
-    torch.set_num_threads(cfg.runtime.threads or available_cpus())
+    torch.set_num_threads(cfg.train.threads)
     device = training_device(cfg.train.device)
     ds = DepthDataset.open(inputs["depth"])
     t = cfg.train
@@ -102,16 +105,15 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     resume = WorkDir(Path(cfg.out)).resume_dir("train-mdn") / "last.pt"
     state = FitState()
-    if resume.is_file():
-        saved = torch.load(resume, map_location="cpu", weights_only=False)
+    if resume.is_file():  # weights_only; a corrupt checkpoint is an InputError naming it
+        saved = load_torch_file(resume, "checkpoint")
         model.load_state_dict(saved["model"])
         optimizer.load_state_dict(saved["optimizer"])
         state = FitState.from_dict(saved["state"])
 
     def checkpoint(s: FitState) -> None:
         payload = {"model": model.state_dict(), "optimizer": optimizer.state_dict()}
-        torch.save({**payload, "state": s.to_dict()}, resume.with_suffix(".tmp"))
-        os.replace(resume.with_suffix(".tmp"), resume)
+        save_torch_file(resume, {**payload, "state": s.to_dict()})
 
     fit_cfg = FitConfig(
         t.epochs, t.batch_size, t.lr, t.weight_decay, t.patience, t.augment_dropout,
@@ -131,8 +133,9 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
         "val_images": len(val),
     }
     save_model_file(tmp / MODEL, KIND, cfg.category.name, model.hparams, state.best_weights, meta)
-    columns = ["epoch", "train_nll", "val_nll", "seconds", "lr"]
+    columns = ["epoch", "train_nll", "val_nll", "lr"]
     write_csv(tmp / METRICS, columns, [[h[c] for c in columns] for h in state.history])
+    write_epoch_timings(tmp, {"train": state.history})
     write_json(tmp / "model.json", {k: v for k, v in meta.items() if k != "codec"} | {
         "hparams": model.hparams, "device": str(device), "epochs_run": state.epoch,
         "stopped_early": state.stopped_early, "learned_columns": codec.learned_columns,

@@ -7,9 +7,11 @@ farthest-point sampling, as `segment` does at inference.
 
 One chunk: the whole training run. The prepared clouds and a checkpoint after every epoch
 live in the work area's resume folder, so an interrupted run continues from its last
-finished epoch with the same result. Outputs: `model.pt` (kind "part-segmenter", best
-validation loss weights, `artic.hierarchy.models.load_segmenter`), `metrics.csv` (one row
-per epoch), `model.json` and `model_card.md` (validation mAP@0.5, clean and noisy).
+finished epoch with the same result (the checkpoint is read with `weights_only=True`; a
+corrupt one is an InputError naming it, never silently discarded). Outputs: `model.pt`
+(kind "part-segmenter", best validation loss weights,
+`artic.hierarchy.models.load_segmenter`), `metrics.csv` (one row per epoch), `model.json`
+and `model_card.md` (validation mAP@0.5, clean and noisy).
 """
 
 from __future__ import annotations
@@ -26,10 +28,11 @@ from pydantic import Field
 
 from artic.artifacts.formats import write_csv, write_json
 from artic.artifacts.scan_dataset import ObjectSplit, ScanDataset, split_train_objects
+from artic.artifacts.timings import data_columns, write_epoch_timings
 from artic.artifacts.workdir import WorkDir
-from artic.cli.stage_runner import Plan, Stage, available_cpus
+from artic.cli.stage_runner import Plan, Stage
 from artic.cli.train_mdn import training_device
-from artic.config.schemas import StageConfig, Strict
+from artic.config.schemas import TRAIN_THREADS_HELP, Strict, TrainingStageConfig
 from artic.errors import InputError
 
 if TYPE_CHECKING:
@@ -126,9 +129,10 @@ class TrainConfig(Strict):
     weight_decay: float = Field(0.0, ge=0)
     patience: int = Field(10, gt=0, description="epochs without a better val loss")
     device: Literal["auto", "cpu", "cuda"] = "auto"
+    threads: int = Field(2, ge=1, description=TRAIN_THREADS_HELP)
 
 
-class TrainSegmenterConfig(StageConfig):
+class TrainSegmenterConfig(TrainingStageConfig):
     category: CategoryRef
     scans: str = Field(description="a render-scan output folder of the category")
     model: ModelConfig
@@ -196,6 +200,7 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     """The training run; writes model.pt, metrics.csv and model.json into tmp."""
     import torch
 
+    from artic.artifacts.model_file import load_torch_file, save_torch_file
     from artic.hierarchy.fit_segmenter import (
         AugmentConfig,
         FitState,
@@ -206,7 +211,7 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     from artic.hierarchy.models import save_segmenter
     from artic.hierarchy.segmentation import PartSegmentationNet
 
-    torch.set_num_threads(cfg.runtime.threads or available_cpus())
+    torch.set_num_threads(cfg.train.threads)
     device = training_device(cfg.train.device)
     ds = ScanDataset.open_category(inputs["scans"], cfg.category.name)
     split = training_objects(ds, cfg.data)
@@ -221,16 +226,15 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     last = resume / "last.pt"
     state = FitState()
-    if last.is_file():
-        saved = torch.load(last, map_location=device, weights_only=False)
+    if last.is_file():  # weights_only; a corrupt checkpoint is an InputError naming it
+        saved = load_torch_file(last, "checkpoint", map_location=device)
         model.load_state_dict(saved["model"])
         optimizer.load_state_dict(saved["optimizer"])
         state = FitState.from_dict(saved["state"])
 
     def checkpoint(s: FitState) -> None:
         payload = {"model": model.state_dict(), "optimizer": optimizer.state_dict()}
-        torch.save({**payload, "state": s.to_dict()}, last.with_suffix(".tmp"))
-        os.replace(last.with_suffix(".tmp"), last)
+        save_torch_file(last, {**payload, "state": s.to_dict()})
 
     augment = AugmentConfig(cfg.augment.rotate_z_deg, cfg.augment.jitter_m)
     fit_cfg = SegmenterFitConfig(
@@ -256,8 +260,9 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
         "val_motion_accuracy": _finite(scores.motion_accuracy),
     }
     save_segmenter(tmp / MODEL, cfg.category.name, model, inference, meta)
-    columns = list(state.history[0]) if state.history else ["epoch"]
+    columns = data_columns(state.history, ["epoch"])
     write_csv(tmp / METRICS, columns, [[h[c] for c in columns] for h in state.history])
+    write_epoch_timings(tmp, {"train": state.history})
     info = {k: v for k, v in meta.items() if not k.endswith("_objects")}
     write_json(tmp / "model.json", info | {
         "network": dataclasses.asdict(model.config), "inference": cfg.inference.model_dump(),

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 #: Config keys that do not change what a stage writes; left out of the config hash.
 NON_OUTPUT_KEYS = ("out", "shard", "runtime", "artifacts_root")
@@ -31,7 +31,9 @@ class RuntimeConfig(Strict):
     """How to run, not what to compute: never changes the output bytes."""
 
     workers: int = Field(0, ge=0, description="worker processes; 0 = the CPUs this process may use")
-    threads: int = Field(0, ge=0, description="torch threads; 0 = the CPUs this process may use")
+    threads: int = Field(
+        0, ge=0, description="torch threads of inference; 0 = the CPUs this process may use"
+    )
 
 
 class StageConfig(Strict):
@@ -42,3 +44,25 @@ class StageConfig(Strict):
     seed: int = Field(0, ge=0, description="base seed; sample i is seeded from (seed, i)")
     shard: ShardConfig = Field(default_factory=ShardConfig)
     runtime: RuntimeConfig = Field(default_factory=RuntimeConfig)
+
+
+class TrainingStageConfig(StageConfig):
+    """A stage that trains a network. A backward pass sums its gradients in an order that
+    depends on the number of threads (oneDNN's convolutions, scatter sums), so the thread
+    count is part of what the stage computes: `train.threads`, in the config hash, not
+    `runtime.threads`, which must stay 0 here."""
+
+    @field_validator("runtime")
+    @classmethod
+    def _threads_are_numerics(cls, runtime: RuntimeConfig) -> RuntimeConfig:
+        if runtime.threads:
+            raise ValueError(
+                "a training stage computes with train.threads (the thread count changes "
+                "the trained weights, so it is part of the config)"
+            )
+        return runtime
+
+
+TRAIN_THREADS_HELP = (
+    "torch threads of training: part of the numerics (another count gives other weights)"
+)

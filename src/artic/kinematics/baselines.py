@@ -101,7 +101,17 @@ class IcpBaseline:
         self.camera, self.voxel, self.max_distance = camera, voxel_m, max_distance_m
 
     def predict(self, depth: NDArray[np.float32]) -> NDArray[np.float64]:
-        """(L,) labels of one depth image (training camera)."""
+        """(L,) labels of one depth image (training camera).
+
+        Open3D's ICP sums over points in OpenMP threads, in an order that depends on
+        their number; it runs on one thread, so the result does not depend on the machine.
+        """
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1, user_api="openmp"):
+            return self._predict(depth)
+
+    def _predict(self, depth: NDArray[np.float32]) -> NDArray[np.float64]:
         import open3d as o3d
 
         reg = o3d.pipelines.registration

@@ -1,0 +1,29 @@
+"""Wall-clock times of a stage's work, kept apart from its data.
+
+Times vary from run to run; the data files stay byte-for-byte reproducible because the
+times live only in `timings.csv` / `timings.json` (`manifest.TIMING_FILES`, left out of
+the content hash). The training stages write one `timings.csv` row per epoch.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from artic.artifacts.formats import write_csv
+
+TIMINGS_CSV = "timings.csv"
+SECONDS = "seconds"
+
+
+def data_columns(history: Sequence[Mapping[str, Any]], default: Sequence[str]) -> list[str]:
+    """The columns of a per-epoch history without its wall-clock `seconds`."""
+    columns = list(history[0]) if history else list(default)
+    return [c for c in columns if c != SECONDS]
+
+
+def write_epoch_timings(folder: Path, phases: Mapping[str, Sequence[Mapping[str, Any]]]) -> None:
+    """`timings.csv` (phase, epoch, seconds): one row per epoch of each phase's history."""
+    rows = [[phase, h["epoch"], h[SECONDS]] for phase, hist in phases.items() for h in hist]
+    write_csv(folder / TIMINGS_CSV, ["phase", "epoch", SECONDS], rows)
