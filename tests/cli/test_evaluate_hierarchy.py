@@ -105,12 +105,17 @@ def test_tables_4_1_and_4_2_are_written(report):
 
 
 def test_shards_merge_into_the_same_files(setup, report, tmp_path):
+    """Shards, worker processes and torch threads never change the bytes (the report was
+    made by one process with one thread)."""
     out = tmp_path / "sharded"
-    assert evaluate(setup, out, "shard.count=2", "shard.index=1")[0] == 0
+    assert evaluate(setup, out, "shard.count=2", "shard.index=1", "runtime.threads=2")[0] == 0
     assert not out.exists()
     assert evaluate(setup, out, "shard.count=2", "shard.index=0")[0] == 0
+    parallel = tmp_path / "two_workers"
+    assert evaluate(setup, parallel, "runtime.workers=2", "runtime.threads=2")[0] == 0
     for name in ("summary.csv", "per_object.csv", "report.md"):
         assert (out / name).read_bytes() == (report / name).read_bytes()
+        assert (parallel / name).read_bytes() == (report / name).read_bytes()
 
 
 def test_bad_inputs_exit_2(setup, tmp_path):
