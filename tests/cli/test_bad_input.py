@@ -27,11 +27,11 @@ import pytest
 from PIL import Image
 
 from artic.artifacts.formats import write_json, write_npz
-from artic.artifacts.manifest import MANIFEST, Manifest, list_outputs, outputs_hash
+from artic.artifacts.manifest import MANIFEST, list_outputs, outputs_hash
 from artic.artifacts.ply import read_ply, write_ply
-from artic.cli.stage_runner import config_hash_of
 from box_clouds import box_cloud
 from cli_runner import run_cli
+from fake_outputs import write_manifest
 
 # --------------------------------------------------------------------------- inputs
 
@@ -113,15 +113,7 @@ class Env:
             "task": task, "n_requested": 2, "control_dt": 0.05, "n_joints": 7,
             "kinematic_model": {"source": "true"}, "planner": "RRTConnect", "demos": entries,
         })  # fmt: skip
-        outputs = list_outputs(folder)
-        config = {"task": {"name": task}, "out": str(folder)}
-        manifest = Manifest(
-            stage="plan-demos", config=config, config_hash=config_hash_of("plan-demos", config, ()),
-            seed=0, inputs={}, outputs=outputs,
-            content_hash=outputs_hash(outputs), versions={}, started_at="", finished_at="",
-            wall_time_s=0.0, stats={},
-        )  # fmt: skip
-        write_json(folder / MANIFEST, manifest.model_dump(mode="json"))
+        write_manifest(folder, "plan-demos", {"task": {"name": task}, "out": str(folder)})
         return folder
 
     def camera(self) -> Path:

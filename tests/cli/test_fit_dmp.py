@@ -11,19 +11,13 @@ import pytest
 
 from artic.artifacts.formats import write_json, write_npz
 from artic.artifacts.manifest import (
-    MANIFEST,
-    Manifest,
-    list_outputs,
-    now_iso,
-    outputs_hash,
-    package_versions,
     read_manifest,
 )
 from artic.cli.fit_dmp import read_dmp
-from artic.cli.stage_runner import config_hash_of
 from artic.errors import InputError
 from artic.policies.dmp import rollout_dmp
 from cli_runner import run_cli
+from fake_outputs import write_manifest
 
 DT = 0.05
 START = np.array([0.0, 0.5, 0.0, -1.5, 0.0, 1.0, 0.0])
@@ -84,23 +78,7 @@ def write_plan_demos(
         "demos": entries,
     }
     write_json(folder / "demos.json", index)
-    outputs = list_outputs(folder)
-    config = {"task": {"name": task}, "out": str(folder)}
-    manifest = Manifest(
-        stage=stage,
-        config=config,
-        config_hash=config_hash_of(stage, config, ()),
-        seed=0,
-        inputs={},
-        outputs=outputs,
-        content_hash=outputs_hash(outputs),
-        versions=package_versions(),
-        started_at=now_iso(),
-        finished_at=now_iso(),
-        wall_time_s=0.0,
-        stats={},
-    )
-    write_json(folder / MANIFEST, manifest.model_dump(mode="json"))
+    write_manifest(folder, stage, {"task": {"name": task}, "out": str(folder)})
     return folder
 
 

@@ -18,15 +18,10 @@ import torch
 from artic.artifacts.formats import write_json, write_npz
 from artic.artifacts.manifest import (
     MANIFEST,
-    Manifest,
-    list_outputs,
-    now_iso,
-    outputs_hash,
-    package_versions,
 )
-from artic.cli.stage_runner import config_hash_of
 from artic.sim.tasks import get_task
 from cli_runner import run_cli
+from fake_outputs import write_manifest
 
 DT = 0.05
 
@@ -56,15 +51,7 @@ def write_plan_demos(folder: Path, task: str, n_joints: int = 7, n_ok: int = 2) 
         "task": task, "n_requested": n_ok, "control_dt": DT, "n_joints": n_joints,
         "kinematic_model": {"source": "true"}, "planner": "RRTConnect", "demos": entries,
     })  # fmt: skip
-    outputs = list_outputs(folder)
-    config = {"task": {"name": task}, "out": str(folder)}
-    manifest = Manifest(
-        stage="plan-demos", config=config, config_hash=config_hash_of("plan-demos", config, ()),
-        seed=0, inputs={},
-        outputs=outputs, content_hash=outputs_hash(outputs), versions=package_versions(),
-        started_at=now_iso(), finished_at=now_iso(), wall_time_s=0.0, stats={},
-    )  # fmt: skip
-    write_json(folder / MANIFEST, manifest.model_dump(mode="json"))
+    write_manifest(folder, "plan-demos", {"task": {"name": task}, "out": str(folder)})
     return folder
 
 
