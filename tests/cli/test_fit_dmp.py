@@ -13,9 +13,8 @@ from artic.artifacts.formats import write_json, write_npz
 from artic.artifacts.manifest import (
     read_manifest,
 )
-from artic.cli.fit_dmp import read_dmp
 from artic.errors import InputError
-from artic.policies.dmp import rollout_dmp
+from artic.policies.dmp import read_dmp, rollout_dmp
 from cli_runner import run_cli
 from fake_outputs import write_manifest
 

@@ -24,7 +24,7 @@ from artic.hierarchy.segmentation import (
     make_optimizer,
     train_step,
 )
-from artic.hierarchy.types import KinematicTree
+from artic.objects.tree import KinematicTree
 from box_clouds import box_cloud
 from cli_runner import run_cli
 

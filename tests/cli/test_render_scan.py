@@ -26,9 +26,8 @@ from artic.cli.render_scan import STAGE, object_motion_types, object_poses, scan
 from artic.cli.stage_runner import resolved_config, run_stage
 from artic.config.compose import validate
 from artic.errors import InputError
-from artic.hierarchy.types import KinematicTree
 from artic.objects.categories import build
-from artic.objects.tree import object_tree
+from artic.objects.tree import KinematicTree, object_tree
 from cli_runner import run_cli
 
 # small and fast: the 128 px camera, 2 poses, 3 views per scan

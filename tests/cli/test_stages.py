@@ -45,7 +45,7 @@ def test_render_depth_writes_shards_labels_and_preview(tiny_depth):
     shards = list(ds.shards())
     assert len(shards) == 3  # 6 objects, 2 per shard
     images = sum(s.depth.shape[0] for s in shards)
-    assert images == 6 * 4 == ds.info["images"]
+    assert images == 6 * 4 == ds.info.images
     s = shards[0]
     assert s.depth.shape == (8, 128, 128) and s.depth.dtype == np.float32
     assert s.part_mask.shape == (8, 128, 128) and s.part_mask.max() >= 2
@@ -132,14 +132,14 @@ def test_render_depth_uses_the_datasets_camera_unless_one_is_named(tmp_path, tin
         )
         assert code == 0, err
     ds = DepthDataset.open(outs["default"])
-    assert (ds.info["camera"]["width"], ds.info["camera"]["height"]) == (192, 108)
+    assert (ds.info.camera.width, ds.info.camera.height) == (192, 108)
     assert next(iter(ds.shards())).depth.shape[1:] == (108, 192)
     assert tree_bytes(outs["default"]) == tree_bytes(outs["named"])
     # another camera, named, is honoured
     other = tmp_path / "other"
     args = ["render-depth", "debug=tiny", f"dataset={objects}", f"out={other}"]
     assert run_cli(*args, "camera=kinect_v1_128")[0] == 0
-    assert DepthDataset.open(other).info["camera"]["width"] == 128
+    assert DepthDataset.open(other).info.camera.width == 128
 
 
 def test_other_seed_gives_other_objects(tmp_path, tiny_objects):

@@ -123,10 +123,11 @@ def test_prepared_graph_cache_is_safe_and_exact(tmp_path: Path) -> None:
     """The resume folder's prepared graphs: tensors and plain data (weights_only), read
     back as the same objects (dtypes, numpy scalars); a corrupt cache exits 2 by name."""
     from artic.artifacts.model_file import load_torch_file, save_torch_file
-    from artic.cli.train_hierarchy import _decode, _encode
     from artic.errors import InputError
+    from artic.hierarchy.fit_labeller import decode as _decode
+    from artic.hierarchy.fit_labeller import encode as _encode
     from artic.hierarchy.graph import PartGraphConfig
-    from artic.hierarchy.types import KinematicTree
+    from artic.objects.tree import KinematicTree
     from box_clouds import box_cloud
 
     tree = KinematicTree(3, 0, ((0, 1), (0, 2)), (0, 1, 2), ("revolute", "prismatic"))

@@ -14,8 +14,8 @@ from PIL import Image
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.artifacts.manifest import read_manifest
 from artic.artifacts.model_file import load_model_file, save_model_file
-from artic.cli.train_mdn import KIND
 from artic.errors import InputError
+from artic.kinematics.config import MDN_KIND as KIND
 from cli_runner import run_cli
 
 
@@ -97,7 +97,7 @@ def image(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[P
     Image.fromarray(shard.depth[0]).save(png)
     np.save(folder / "depth.npy", shard.depth[0].astype(np.float32) / 1000)
     camera = folder / "camera.json"
-    camera.write_text(json.dumps(ds.info["camera"]))
+    camera.write_text(ds.info.camera.model_dump_json())
     return png, folder / "depth.npy", camera
 
 

@@ -116,12 +116,15 @@ def test_bad_inputs_exit_2(tiny: TinyScans, tmp_path: Path) -> None:
 
 def test_prepared_clouds_are_cached_for_resume(tiny: TinyScans, tmp_path: Path) -> None:
     from artic.cli.stage_runner import resolved_config
-    from artic.cli.train_segmenter import STAGE, load_clouds
+    from artic.cli.train_segmenter import STAGE
     from artic.config.compose import validate
+    from artic.hierarchy.fit_segmenter import load_clouds
 
     raw = resolved_config(STAGE, ["debug=tiny", f"scans={tiny.scans}", f"out={tmp_path}"])
     cfg = validate(STAGE.schema, raw)
-    data, skipped = load_clouds(ScanDataset.open(tiny.scans), [0, 3], cfg)
+    ds = ScanDataset.open(tiny.scans)
+    n_points, n_masks = cfg.inference.n_points, cfg.model.n_masks
+    data, skipped = load_clouds(ds, [0, 3], cfg.data, n_points, n_masks, cfg.seed)
     assert skipped == 0 and len(data) == 8
     assert data.points.shape == (8, 128, 3) and data.noisy.sum() == 4
     assert set(np.unique(data.object_id)) == {0, 3}

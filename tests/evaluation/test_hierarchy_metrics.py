@@ -12,7 +12,7 @@ from artic.evaluation.hierarchy import (
     tree_score,
 )
 from artic.hierarchy.tree import extract_tree
-from artic.hierarchy.types import GraphLabelling, KinematicTree
+from artic.objects.tree import GraphLabelling, KinematicTree
 
 TRUE = KinematicTree(
     4, 0, ((0, 1), (0, 2), (2, 3)), (0, 1, 2, 1), ("revolute", "prismatic", "revolute")

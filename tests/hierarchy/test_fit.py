@@ -12,7 +12,7 @@ from artic.hierarchy.fit_labeller import make_example, restrict_tree
 from artic.hierarchy.fit_segmenter import AugmentConfig, augment, prepare_cloud
 from artic.hierarchy.graph import PartGraphConfig
 from artic.hierarchy.pointnet2 import farthest_point_indices
-from artic.hierarchy.types import KinematicTree
+from artic.objects.tree import KinematicTree
 
 #: body 0 -> door 1 -> handle 2; body 0 -> drawer 3 -> handle 4
 TREE = KinematicTree(
@@ -72,7 +72,13 @@ def test_make_example_compacts_part_ids() -> None:
     part = np.repeat(np.arange(5), 40)
     points = offsets[part] + rng.uniform(-0.2, 0.2, (200, 3))
     keep = part != 1
-    example = make_example(points[keep], part[keep], TREE, rng, PartGraphConfig(0.1, 8))
+    example = make_example(
+        points[keep],
+        part[keep],
+        TREE,
+        rng,
+        PartGraphConfig(contact_threshold=0.1, points_per_node=8),
+    )
     assert example is not None
     assert example.graph.num_parts == 4 and example.tree.num_parts == 4
     assert example.labels.motion_type.tolist() == [0, 0, 2, 0]

@@ -28,7 +28,8 @@ from artic.hierarchy.graph import (
     reverse_edge_features,
 )
 from artic.hierarchy.tree import extract_tree
-from artic.hierarchy.types import JOINT_TYPE_OF_MOTION, KinematicTree, PartGraph
+from artic.hierarchy.types import PartGraph
+from artic.objects.tree import JOINT_TYPE_OF_MOTION, KinematicTree
 from box_clouds import box_surface
 
 SMALL = GraphNetConfig(encoder_widths=(16, 32), decoder_points=32, hidden=32, head_hidden=32)

@@ -13,7 +13,7 @@ from artic.hierarchy.graph import (
     graph_labels,
     reverse_edge_features,
 )
-from artic.hierarchy.types import KinematicTree
+from artic.objects.tree import KinematicTree
 from box_clouds import box_surface
 
 

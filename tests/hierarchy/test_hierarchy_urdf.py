@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from artic.hierarchy.joints import estimate_axes
-from artic.hierarchy.types import KinematicTree
 from artic.hierarchy.urdf import convex_hull_mesh, tree_to_urdf
+from artic.objects.tree import KinematicTree
 from artic.sim.bullet import connect_direct
 from box_clouds import box_surface
 

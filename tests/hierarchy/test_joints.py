@@ -11,7 +11,7 @@ from artic.hierarchy.joints import (
     prismatic_axis,
     revolute_axis,
 )
-from artic.hierarchy.types import KinematicTree
+from artic.objects.tree import KinematicTree
 from box_clouds import box_surface
 
 HINGE = np.array([0.0, -0.28, 0.0])  # a point of the hinge line, which is vertical (+z)

@@ -81,7 +81,9 @@ def _graph() -> PartGraph:
     rng = np.random.default_rng(0)
     points = np.concatenate([rng.uniform(0, 1, (50, 3)), rng.uniform(0.9, 1.5, (50, 3))])
     part_id = np.repeat(np.arange(2), 50)
-    return build_part_graph(points, part_id, rng, PartGraphConfig(0.2, 16))
+    return build_part_graph(
+        points, part_id, rng, PartGraphConfig(contact_threshold=0.2, points_per_node=16)
+    )
 
 
 def test_labeller_round_trip(tmp_path: Path) -> None:

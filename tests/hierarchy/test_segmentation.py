@@ -18,7 +18,6 @@ from artic.evaluation.segmentation import (
 )
 from artic.hierarchy.pointnet2 import Norm, SetAbstractionSpec, farthest_point_indices
 from artic.hierarchy.segmentation import (
-    MOTION_TYPES,
     N_MASKS,
     InferenceConfig,
     PartSegmentationNet,
@@ -33,6 +32,7 @@ from artic.hierarchy.segmentation import (
     segmentation_loss,
     train_step,
 )
+from artic.objects.tree import MOTION_TYPES
 
 
 @pytest.fixture(autouse=True)

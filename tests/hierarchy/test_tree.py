@@ -8,7 +8,7 @@ from scipy.sparse.csgraph import minimum_spanning_tree
 
 from artic.errors import InputError
 from artic.hierarchy.tree import FALLBACK_COST, edge_cost_matrix, extract_tree, prim_tree
-from artic.hierarchy.types import GraphLabelling, JointAxis, KinematicTree
+from artic.objects.tree import GraphLabelling, JointAxis, KinematicTree
 
 
 def labelling(

@@ -115,8 +115,8 @@ def test_splits_are_by_object_and_disjoint(tiny_depth):
     ids = {s: set(p.object_id.tolist()) for s, p in parts.items()}
     assert ids["train"] and ids["val"] and ids["test"]
     assert not (ids["train"] & ids["val"]) and not (ids["train"] | ids["val"]) & ids["test"]
-    assert sum(len(p) for p in parts.values()) == ds.info["images"]
-    camera = CameraIntrinsics.model_validate(ds.info["camera"])
+    assert sum(len(p) for p in parts.values()) == ds.info.images
+    camera = ds.info.camera
     x = InputPipeline(camera, 32)(parts["train"].depth_m(np.arange(2)))
     assert x.image.shape == (2, 1, 32, 32) and float(x.image.max()) > 0
     one = load_split(ds, "train", val_every=2, max_objects=1)

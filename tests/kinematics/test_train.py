@@ -8,11 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from artic.kinematics.train import FitConfig, learning_rate
+from artic.kinematics.config import MdnTrainConfig
+from artic.kinematics.train import learning_rate
 
 
-def _cfg(schedule: str, epochs: int = 10) -> FitConfig:
-    return FitConfig(epochs, 64, 1e-3, 0.0, 3, 0.1, 0, schedule=schedule, min_lr_ratio=0.01)  # type: ignore[arg-type]
+def _cfg(schedule: str, epochs: int = 10) -> MdnTrainConfig:
+    return MdnTrainConfig.model_validate(
+        {"epochs": epochs, "lr": 1e-3, "schedule": schedule, "min_lr_ratio": 0.01}
+    )
 
 
 def test_constant_schedule_keeps_the_learning_rate():

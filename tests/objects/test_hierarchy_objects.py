@@ -18,8 +18,6 @@ from pydantic import ValidationError
 from typer.testing import CliRunner
 
 from artic.cli.main import app
-from artic.hierarchy.types import MOTION_TYPES as GRAPH_MOTION_TYPES
-from artic.hierarchy.types import KinematicTree
 from artic.objects.categories import CATEGORIES
 from artic.objects.model import ArticulatedObject
 from artic.objects.structures import (
@@ -35,6 +33,7 @@ from artic.objects.structures import (
 from artic.objects.tree import (
     MOTION_TYPES,
     ArticulatedPoses,
+    KinematicTree,
     ObjectTree,
     object_tree,
     sample_configurations,
@@ -147,7 +146,7 @@ def test_every_tree_is_valid_with_a_single_root(
         assert graph.edges == tree.edges and graph.motion_types == tree.motion_type_ids
         assert tree.to_kinematic_tree().joint_types == tree.joint_types
         assert ObjectTree.model_validate_json(tree.model_dump_json()) == tree
-    assert MOTION_TYPES == GRAPH_MOTION_TYPES
+    assert MOTION_TYPES == ("static", "rotating", "translating", "both")
 
 
 def test_motion_types_of_storage_parts(configs: dict[str, StructureConfig]) -> None:

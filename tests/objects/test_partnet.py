@@ -17,9 +17,8 @@ from scipy.spatial.transform import Rotation
 
 from artic.artifacts.partnet import load_partnet
 from artic.errors import InputError
-from artic.hierarchy.types import KinematicTree
 from artic.objects.partnet import SPIN_RANGE, parse_obj, parse_semantics
-from artic.objects.tree import sample_configurations
+from artic.objects.tree import KinematicTree, sample_configurations
 from artic.objects.urdf import write_urdf
 
 # PartNet-Mobility's objects are y-up; the fixed joint from `base` turns them z-up.

@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
+from artic.control.tracking import JointTracker
 from artic.errors import InputError
 from artic.policies.dmp import (
     DMPConfig,
-    DMPController,
     DMPFile,
     DMPParams,
     fit_dmp,
@@ -186,8 +186,8 @@ def test_controller_tracks_the_rollout_with_feedback():
     cfg = DMPConfig()
     t, y = min_jerk(1.0, 0.02)
     p = fit_dmp(t, y, cfg)
-    ctrl = DMPController.from_params(p, cfg, 0.02, 50, k_p=10.0)
-    traj = ctrl.trajectory
+    traj = rollout_dmp(p, cfg, 0.02, 50)
+    ctrl = JointTracker(traj.y, traj.yd, k_p=10.0)
     assert np.allclose(ctrl.action(3, traj.y[3]), traj.yd[3])
     q = traj.y[3] + 0.1
     assert np.allclose(ctrl.action(3, q), traj.yd[3] - 1.0)
@@ -203,7 +203,7 @@ def test_controller_tracks_the_rollout_with_feedback():
     with pytest.raises(InputError, match="q_robot"):
         ctrl.action(0, np.zeros(3))
     with pytest.raises(InputError, match="k_p"):
-        DMPController(traj, k_p=-1.0)
+        JointTracker(traj.y, traj.yd, k_p=-1.0)
 
 
 @pytest.mark.parametrize(

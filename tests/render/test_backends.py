@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from artic.artifacts.object_dataset import ObjectDataset
-from artic.cli.render_depth import latin_hypercube
 from artic.geometry.camera import CameraIntrinsics
 from artic.geometry.transforms import make_transform, rot_z
 from artic.objects.categories import build
 from artic.objects.model import ArticulatedObject, Link
 from artic.objects.parts import Box, mass_properties, union_mesh
+from artic.objects.tree import latin_hypercube
 from artic.objects.urdf import write_urdf
 from artic.render.backend import make_backend
 from artic.render.raycast import rigid_groups

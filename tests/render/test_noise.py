@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from artic.evaluation.preview import contact_sheet
 from artic.geometry.camera import CameraIntrinsics
 from artic.render.noise import (
     SensorNoiseConfig,
@@ -15,7 +16,6 @@ from artic.render.noise import (
     quantize_disparity,
     uint16_mm_to_depth,
 )
-from artic.render.preview import contact_sheet
 
 ONLY_AXIAL = dict(lateral_sigma_px=0.0, quantize=False, edge_dropout=0.0, dropout=0.0)
 

@@ -21,10 +21,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from artic.artifacts.formats import read_npz
-from artic.artifacts.manifest import Manifest, read_manifest, verify_file
+from artic.artifacts.manifest import MANIFEST, Manifest, read_manifest, verify_file
 from artic.errors import InputError
+from artic.geometry.camera import CameraIntrinsics
 
 STAGE = "render-depth"
 INFO = "dataset.json"
@@ -58,13 +60,31 @@ def decode_depth(stored: NDArray[Any]) -> NDArray[np.float32]:
     raise InputError(f"depth stored as {stored.dtype}; expected uint16 (mm) or float16 (m)")
 
 
+class DepthDatasetInfo(BaseModel):
+    """`dataset.json`: what the images are of and how they were made (docs/formats.md).
+    The camera, DoF and joint type travel on with a model trained on them."""
+
+    model_config = ConfigDict(frozen=True, extra="ignore")
+    category: str
+    dof: int
+    joint_type: str
+    camera: CameraIntrinsics
+    label_columns: list[str]
+    depth_encoding: str | None = None
+    noise: bool | None = None
+    backend: str | None = None
+    images: int | None = None
+    objects: int | None = None
+    configurations_per_object: int | None = None
+
+
 @dataclass(frozen=True)
 class DepthDataset:
     """A finished `render-depth` output folder."""
 
     root: Path
     manifest: Manifest
-    info: dict[str, Any]
+    info: DepthDatasetInfo
 
     @classmethod
     def open(cls, root: Path) -> DepthDataset:
@@ -77,19 +97,24 @@ class DepthDataset:
         needed = ("category", "label_columns", "camera", "dof", "joint_type")
         if not isinstance(info, dict) or any(k not in info for k in needed):
             raise InputError(f"{path}: expected a JSON object with {', '.join(needed)}")
-        return cls(root, manifest, info)
+        try:
+            return cls(root, manifest, DepthDatasetInfo.model_validate(info))
+        except ValidationError as err:
+            first = err.errors()[0]
+            where = ".".join(str(p) for p in first["loc"])
+            raise InputError(f"{path}: {where}: {first['msg']}") from None
 
     @classmethod
     def open_category(cls, root: Path, category: str, field: str = "depth") -> DepthDataset:
         """`open`, and InputError naming `field` unless the images are of `category`."""
         ds = cls.open(root)
-        if ds.info["category"] != category:
-            raise InputError(f"{field}: {root} holds {ds.info['category']} images, not {category}")
+        if ds.info.category != category:
+            raise InputError(f"{field}: {root} holds {ds.info.category} images, not {category}")
         return ds
 
     @property
     def label_columns(self) -> list[str]:
-        return list(self.info["label_columns"])
+        return list(self.info.label_columns)
 
     def shard_files(self) -> list[str]:
         return sorted(k for k in self.manifest.outputs if k.startswith("shards/"))
@@ -111,3 +136,58 @@ class DepthDataset:
                 image_index=data["image_index"],
                 test=data["test"],
             )
+
+
+def recorded_objects(depth: Path) -> tuple[list[Path], str]:
+    """Where the object dataset `depth` was rendered from may lie, most likely first,
+    and its content hash, from depth's manifest. A relative recorded path is relative
+    to the directory render-depth ran in: found from the depth folder's own recorded
+    `out` (when the folder has not moved since), else tried beside the current
+    directory."""
+    manifest = read_manifest(depth, expected_stage="render-depth")
+    record = manifest.inputs.get("dataset")
+    if record is None:
+        raise InputError(f"depth: {depth / MANIFEST} records no dataset input; pass objects=PATH")
+    recorded = Path(record.path)
+    if recorded.is_absolute():
+        return [recorded], record.content_hash
+    candidates: list[Path] = []
+    out = Path(str(manifest.config.get("out", "")))
+    here = depth.resolve()
+    if str(out) not in ("", ".") and not out.is_absolute():
+        n = len(out.parts)
+        if len(here.parts) > n and here.parts[-n:] == out.parts:
+            candidates.append(here.parents[n - 1] / recorded)
+    candidates.append(recorded)
+    return candidates, record.content_hash
+
+
+def source_objects(depth: Path, given: Path | None) -> Path:
+    """The object dataset (a generate-dataset folder) `depth` was rendered from: `given`,
+    else where depth's manifest records it (`recorded_objects`); InputError naming the
+    `depth` or `objects` field unless its content hash is the one depth records."""
+    try:
+        candidates, expected = recorded_objects(depth)
+    except InputError as err:
+        message = str(err)
+        raise InputError(message if message.startswith("depth:") else f"depth: {message}") from None
+    if given is not None:
+        objects = given
+    else:
+        found = [p for p in candidates if (p / MANIFEST).is_file()]
+        if not found:
+            raise InputError(
+                f"objects: the dataset {depth} was rendered from is not at "
+                f"{candidates[0]}; pass objects=PATH (its generate-dataset folder)"
+            )
+        objects = found[0]
+    try:
+        actual = read_manifest(objects, expected_stage="generate-dataset").content_hash
+    except InputError as err:
+        raise InputError(f"objects: {err}") from None
+    if actual != expected:
+        raise InputError(
+            f"objects: {objects} is not the dataset {depth} was rendered from (content hash "
+            f"{actual[:12]}, depth records {expected[:12]}); pass objects=PATH"
+        )
+    return objects

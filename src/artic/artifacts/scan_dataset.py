@@ -30,7 +30,7 @@ from artic.errors import InputError
 
 if TYPE_CHECKING:
     from artic.artifacts.ply import PlyCloud
-    from artic.hierarchy.types import KinematicTree
+    from artic.objects.tree import KinematicTree
 
 STAGE = "render-scan"
 INFO = "scans.json"
@@ -173,7 +173,7 @@ class ScanDataset:
 
     def tree(self, object_id: int) -> KinematicTree:
         """The ground-truth kinematic tree of one object (trees/<id>.json, verified)."""
-        from artic.hierarchy.types import KinematicTree
+        from artic.objects.tree import KinematicTree
 
         path = verify_file(self.root, self.manifest, tree_file(object_id))
         try:

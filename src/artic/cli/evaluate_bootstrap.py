@@ -3,7 +3,7 @@
 Reads the two policy-search folders of a task (`bootstrap=`, `random=`; both must be of
 the same task config) and writes:
 - `curves.csv`: per init and update, the mean and standard error over seeds of the
-  normalised return 1 - R / R_idle (see `artic.cli.policy_search`), and the rollouts done;
+  normalised return 1 - R / R_idle (see `artic.learning.search`), and the rollouts done;
 - `curves.png`: those curves, mean with a standard-error band (Figure 5.2's style);
 - `episodes.csv`: `episodes` evaluation rollouts of each init's final policies (mean
   action, no exploration), episode j run by seed j mod seeds, from reset seeds drawn
@@ -19,8 +19,6 @@ Chunks: one per (init, seed) pair, each rolling out that seed's share of the epi
 from __future__ import annotations
 
 import csv
-import json
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,17 +26,11 @@ import numpy as np
 from pydantic import Field
 
 from artic.artifacts.formats import write_csv
-from artic.artifacts.manifest import read_manifest, verify_file
-from artic.cli.policy_search import (
-    CURVE,
-    CURVE_COLUMNS,
-    PolicySearchConfig,
-    algorithm_of,
-    seed_dir,
-)
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
+from artic.learning.search import algorithm_of
+from artic.learning.search_output import SearchOutput, bootstrap_verdict, curve_stats
 
 INITS = ("bootstrap", "random")
 EPISODE_COLUMNS = ["init", "seed", "episode", "reset_seed", "return", "success"]
@@ -59,63 +51,6 @@ class EvaluateBootstrapConfig(StageConfig):
     episodes: int = Field(100, gt=0, description="evaluation rollouts per init")
     reach_fraction: float = Field(0.9, gt=0, le=1, description="fraction of the final return")
     reach_within: int = Field(50, ge=0, description="updates to reach it within (target)")
-
-
-@dataclass(frozen=True)
-class SearchOutput:
-    """A finished policy-search folder: its validated config and manifest."""
-
-    folder: Path
-    cfg: PolicySearchConfig
-    manifest: Any
-
-    @classmethod
-    def open(cls, folder: Path) -> SearchOutput:
-        manifest = read_manifest(folder, expected_stage="policy-search")
-        try:
-            cfg = PolicySearchConfig.model_validate(manifest.config)
-        except ValueError as err:
-            raise InputError(
-                f"{folder}: config in its manifest does not validate ({err})"
-            ) from None
-        verify_file(folder, manifest, CURVE)
-        return cls(folder, cfg, manifest)
-
-    def curve(self) -> np.ndarray:
-        """(rows, 7) learning_curve.csv as floats (columns `CURVE_COLUMNS`)."""
-        with (self.folder / CURVE).open(newline="") as f:
-            rows = list(csv.reader(f))
-        if not rows or rows[0] != CURVE_COLUMNS:
-            raise InputError(f"{self.folder / CURVE}: expected the columns {CURVE_COLUMNS}")
-        return np.array([[float(v) for v in r] for r in rows[1:]], dtype=np.float64).reshape(
-            -1, len(CURVE_COLUMNS)
-        )
-
-    def final_actor(self, index: int) -> Any:
-        """The `ActionFn` of seed `index`'s final policy (mean action, no exploration)."""
-        task = self.cfg.task
-        if algorithm_of(self.cfg) == "pi2cma":
-            from artic.learning.rollout import dmp_actor
-            from artic.policies.dmp import DMPFile
-
-            path = verify_file(self.folder, self.manifest, f"{seed_dir(index)}/dmp.json")
-            dmp = DMPFile.from_json_dict(json.loads(path.read_text()))
-            k_p = self.cfg.pi2cma_policy.k_p
-            return dmp_actor(dmp.params, dmp.cfg, task.control_dt, task.horizon, k_p)
-        from artic.artifacts.model_file import load_torch_file
-        from artic.learning.rollout import gaussian_actor
-        from artic.policies.gaussian_mlp import GaussianMLPPolicy
-
-        path = verify_file(self.folder, self.manifest, f"{seed_dir(index)}/policy.pt")
-        saved = load_torch_file(path, "policy file")  # weights_only: tensors and plain data
-        try:
-            h = saved["hparams"]
-            policy = GaussianMLPPolicy(h["obs_dim"], h["act_dim"], tuple(h["hidden"]),
-                                       min_log_std=h["min_log_std"])  # fmt: skip
-            policy.load_state_dict(saved["state_dict"])
-        except (KeyError, TypeError, ValueError, RuntimeError) as err:
-            raise InputError(f"{path}: policy does not load ({type(err).__name__})") from None
-        return gaussian_actor(policy)
 
 
 def _open_inputs(cfg: EvaluateBootstrapConfig, inputs: dict[str, Path]) -> dict[str, SearchOutput]:
@@ -172,21 +107,6 @@ def evaluate_chunk(
     return len(rows)
 
 
-def curve_stats(curve: np.ndarray) -> np.ndarray:
-    """(updates, 4) rows [update, rollouts, mean, sem] of the normalised return over seeds
-    for a learning_curve table (rows, 7); updates that not every seed reached are left out."""
-    seeds = np.unique(curve[:, 0])
-    out = []
-    for u in np.unique(curve[:, 1]):
-        at = curve[curve[:, 1] == u]
-        if len(at) != len(seeds):
-            continue
-        x = at[:, 4]
-        sem = x.std(ddof=1) / np.sqrt(len(x)) if len(x) > 1 else 0.0
-        out.append([u, at[0, 2], x.mean(), sem])
-    return np.array(out, dtype=np.float64).reshape(-1, 4)
-
-
 def _plot(path: Path, stats: dict[str, np.ndarray], title: str) -> None:
     import matplotlib
 
@@ -239,7 +159,7 @@ def _finalize(
     columns = ["init", "episodes", "successes", "success_rate", "mean_return"]
     table = [[i, n, w, w / n, m] for i, (n, w, m) in success.items()]
     write_csv(work / "success.csv", columns, table)
-    verdict = _verdict(cfg, stats)
+    verdict = bootstrap_verdict(stats, cfg.reach_fraction, cfg.reach_within)
     _report(work / "report.md", cfg, runs, stats, success, verdict)
     return {
         "task": cfg.task.name,
@@ -249,25 +169,6 @@ def _finalize(
         "random success": round(success["random"][1] / success["random"][0], 3),
         "beats random at every update": str(verdict["beats_every_update"]),
         "reaches 90% by update": str(verdict["reach_update"]),
-    }
-
-
-def _verdict(cfg: EvaluateBootstrapConfig, stats: dict[str, np.ndarray]) -> dict[str, Any]:
-    b, r = stats["bootstrap"], stats["random"]
-    common = sorted(set(b[:, 0]) & set(r[:, 0]))
-    bm = dict(zip(b[:, 0], b[:, 2], strict=True))
-    rm = dict(zip(r[:, 0], r[:, 2], strict=True))
-    behind = [int(u) for u in common if not bm[u] > rm[u]]
-    final = float(b[-1, 2])
-    reached = [
-        int(u) for u, m in zip(b[:, 0], b[:, 2], strict=True) if m >= cfg.reach_fraction * final
-    ]
-    reach = reached[0] if final > 0 and reached else None
-    return {
-        "beats_every_update": not behind and bool(common),
-        "behind_at": behind,
-        "reach_update": reach,
-        "reach_ok": reach is not None and reach <= cfg.reach_within,
     }
 
 
@@ -317,6 +218,12 @@ def _report(path: Path, cfg: EvaluateBootstrapConfig, runs: dict[str, SearchOutp
 
 STAGE: Stage[EvaluateBootstrapConfig] = Stage(
     name="evaluate-bootstrap",
+    command="evaluate bootstrap",
+    help=(
+        "Figure 5.2: bootstrapped vs random initialisation over seeds, and success rates.\n\n"
+        "Example: artic evaluate bootstrap --task drawer"
+    ),
+    task_option=True,
     conf="evaluate_bootstrap",
     schema=EvaluateBootstrapConfig,
     plan=_plan,

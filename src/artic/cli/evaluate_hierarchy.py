@@ -26,7 +26,7 @@ import json
 import math
 import shutil
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from pydantic import Field
@@ -34,43 +34,13 @@ from pydantic import Field
 from artic.artifacts.formats import write_csv, write_json
 from artic.artifacts.scan_dataset import ScanDataset
 from artic.cli.stage_runner import Plan, Stage, available_cpus
-from artic.config.schemas import StageConfig, Strict
+from artic.config.schemas import StageConfig
 from artic.errors import InputError
+from artic.evaluation.hierarchy_report import COUNTS, SEGMENTATIONS, chapter4_report, table_rows
+from artic.hierarchy.config import CategoryName, HierarchyEvaluateConfig
 
 MODEL = "model.pt"
 CHUNKS = "chunks"
-SEGMENTATIONS = ("gt", "pred")
-COUNTS = ("type_errors", "nodes", "exist_errors", "pairs", "dir_errors", "directed", "root_error")
-
-#: Table 4.1 (mAP @ 0.5 IoU) and Table 4.2 (ground-truth segmentation) of the thesis
-THESIS_MAP: dict[str, dict[str, float]] = {
-    "storage_furniture": {"clean": 0.922, "noisy": 0.907},
-    "lamp": {"clean": 0.695, "noisy": 0.593},
-    "office_chair": {"clean": 0.824, "noisy": 0.811},
-}
-THESIS_TREE: dict[str, dict[str, tuple[float, ...]]] = {  # E_type, E_exist, E_dir, E_root, Tree F1
-    "storage_furniture": {"clean": (1.16, 1.2, 2.22, 0, 99.73),
-                          "noisy": (0.39, 2.03, 29.04, 0, 99.02)},
-    "lamp": {"clean": (0.47, 4.63, 31.11, 0.23, 98.24), "noisy": (0, 0.98, 17.24, 0.92, 97.82)},
-    "office_chair": {"clean": (0.08, 0.1, 39.64, 0, 99.77),
-                     "noisy": (0.24, 0.99, 41.73, 0, 98.67)},
-}  # fmt: skip
-
-
-class CategoryName(Strict):
-    """The category config group; only its name is needed."""
-
-    model_config = Strict.model_config | {"extra": "ignore"}
-    name: str
-
-
-class EvaluateOptions(Strict):
-    kinds: tuple[Literal["clean", "noisy"], ...] = Field(("clean", "noisy"), min_length=1)
-    max_objects: int | None = Field(None, gt=0, description="first N test objects (null: all)")
-    max_poses: int | None = Field(None, gt=0, description="first N poses of each (null: all)")
-    iou_threshold: float = Field(0.5, gt=0, le=1, description="mAP true-positive IoU")
-    match_iou: float = Field(0.5, gt=0, le=1, description="predicted-to-true part matching")
-    objects_per_chunk: int = Field(4, gt=0, description="test objects per resumable chunk")
 
 
 class EvaluateHierarchyConfig(StageConfig):
@@ -78,7 +48,7 @@ class EvaluateHierarchyConfig(StageConfig):
     scans: str = Field(description="a render-scan output folder (its test split is used)")
     segmenter: str = Field(description="a train-segmenter output folder")
     labeller: str = Field(description="a train-hierarchy output folder")
-    evaluate: EvaluateOptions
+    evaluate: HierarchyEvaluateConfig
 
 
 @functools.lru_cache(maxsize=2)
@@ -98,61 +68,13 @@ def _plan(cfg: EvaluateHierarchyConfig, inputs: dict[str, Path]) -> Plan:
     return Plan([min(size, n - c * size) for c in range(math.ceil(n / size))], "objects")
 
 
-def evaluate_scan(
-    points: np.ndarray,
-    true_part: np.ndarray,
-    true_motion: np.ndarray,
-    tree: Any,
-    segmenter: Any,
-    labeller: Any,
-    cfg: Any,
-    opts: EvaluateOptions,
-    rng: np.random.Generator,
-) -> dict[str, Any] | None:
-    """One scan's Table 4.1 detections and Table 4.2 counts (None: root not visible).
-    points (N, 3) metres; true_part, true_motion (N,) ints (-1: no part)."""
-    from artic.evaluation.hierarchy import hierarchy_counts, match_parts
-    from artic.evaluation.segmentation import motion_type_accuracy, object_detections
-    from artic.hierarchy.fit_labeller import restrict_tree
-    from artic.hierarchy.infer import build_hierarchy, segment_scan
-
-    labelled = true_part >= 0
-    present = np.unique(true_part[labelled])
-    if tree.root not in present or present.max() >= tree.num_parts:
-        return None
-    truth = restrict_tree(tree, present.tolist())
-    gt = np.searchsorted(present, true_part[labelled]).astype(np.int64)
-    pts = points[labelled]
-    seg = segment_scan(pts, segmenter, cfg, rng)
-    det = object_detections(seg.part_id, seg.part_confidence, gt, opts.iou_threshold)
-    record: dict[str, Any] = {
-        "points": len(pts),
-        "true_parts": truth.num_parts,
-        "hidden_parts": tree.num_parts - truth.num_parts,
-        "pred_parts": seg.num_parts,
-        "confidence": det.confidence.tolist(),
-        "true_positive": det.true_positive.tolist(),
-        "n_ground_truth": det.n_ground_truth,
-        "motion_accuracy": motion_type_accuracy(seg.motion_type, true_motion[labelled]),
-    }
-    for name, part_id in (("gt", gt), ("pred", seg.part_id)):
-        h = build_hierarchy(pts, part_id, labeller, cfg, rng)
-        mapping = None if name == "gt" else match_parts(part_id, gt, opts.match_iou)
-        c = hierarchy_counts(h.labelling, h.tree, truth, mapping)
-        record[name] = {k: int(getattr(c, k)) for k in COUNTS} | {
-            "tree_precision": c.tree.precision,
-            "tree_recall": c.tree.recall,
-            "tree_f1": c.tree.f1,
-        }
-    return record
-
-
 def evaluate_chunk(
     cfg: EvaluateHierarchyConfig, inputs: dict[str, Path], chunk: int, tmp: Path
 ) -> int:
     """Evaluate the scans of chunk `chunk`'s test objects into tmp/chunks/<chunk>.json."""
     import torch
 
+    from artic.hierarchy.evaluate import evaluate_scan
     from artic.hierarchy.infer import HierarchyConfig
     from artic.hierarchy.models import load_labeller, load_segmenter
 
@@ -191,116 +113,6 @@ def evaluate_chunk(
     return len(objects)
 
 
-def table_rows(records: list[dict[str, Any]], kinds: tuple[str, ...]) -> list[dict[str, Any]]:
-    """summary.csv rows: per kind and segmentation, mAP, motion accuracy and Table 4.2."""
-    from artic.evaluation.hierarchy import HierarchyCounts, TreeScore, summarize
-    from artic.evaluation.segmentation import Detections, mean_average_precision
-
-    rows = []
-    for kind in kinds:
-        mine = [r for r in records if r["kind"] == kind]
-        if not mine:
-            continue
-        dets = [
-            Detections(
-                np.asarray(r["confidence"], dtype=np.float64),
-                np.asarray(r["true_positive"], dtype=bool),
-                r["n_ground_truth"],
-            )
-            for r in mine
-        ]
-        m_ap = mean_average_precision(dets, pooled=True)
-        motion = float(np.mean([r["motion_accuracy"] for r in mine]))
-        for seg in SEGMENTATIONS:
-            counts = [
-                HierarchyCounts(
-                    **{k: int(r[seg][k]) for k in COUNTS[:6]},
-                    root_error=bool(r[seg]["root_error"]),
-                    tree=TreeScore(
-                        r[seg]["tree_precision"], r[seg]["tree_recall"], r[seg]["tree_f1"]
-                    ),
-                )
-                for r in mine
-            ]
-            t = summarize(counts)
-            rows.append(
-                {
-                    "kind": kind,
-                    "segmentation": seg,
-                    "scans": len(mine),
-                    "map": m_ap,
-                    "motion_accuracy": motion,
-                    "e_type": t.e_type,
-                    "e_exist": t.e_exist,
-                    "e_dir": t.e_dir,
-                    "e_root": t.e_root,
-                    "tree_f1": t.tree_f1,
-                }
-            )
-    return rows
-
-
-def _report(
-    cfg: EvaluateHierarchyConfig, rows: list[dict[str, Any]], skipped: int, objects: int
-) -> str:
-    name = cfg.category.name
-    tmap, ttree = THESIS_MAP.get(name, {}), THESIS_TREE.get(name, {})
-    lines = [
-        f"# Chapter 4 on withheld {name} objects",
-        "",
-        f"Test-split scans of `{cfg.scans}`; segmenter `{cfg.segmenter}`, labeller "
-        f"`{cfg.labeller}`. Thesis: PartNet-Mobility models (Tables 4.1, 4.2); ours: the "
-        "procedural objects of this folder, so the numbers are comparable in kind, not equal.",
-        "",
-        "## Table 4.1: part segmentation (mAP @ 0.5 IoU)",
-        "",
-        "| Category | Clean | Noisy | Clean (thesis) | Noisy (thesis) |",
-        "|---|---|---|---|---|",
-    ]
-    get = {(r["kind"], r["segmentation"]): r for r in rows}
-
-    def cell(kind: str, key: str, seg: str = "gt", fmt: str = "{:.3f}") -> str:
-        row = get.get((kind, seg))
-        return "-" if row is None or np.isnan(row[key]) else fmt.format(row[key])
-
-    def thesis_map(kind: str) -> str:
-        return f"{tmap[kind]:.3f}" if kind in tmap else "-"
-
-    lines.append(
-        f"| {name} | {cell('clean', 'map')} | {cell('noisy', 'map')} "
-        f"| {thesis_map('clean')} | {thesis_map('noisy')} |"
-    )
-    accuracy = ", ".join(f"{k} {cell(k, 'motion_accuracy')}" for k in ("clean", "noisy"))
-    lines += ["", f"Per-point motion-type accuracy: {accuracy}", ""]
-    lines += [
-        "## Table 4.2: kinematic structure error (%)",
-        "",
-        "| Data Type | Segmentation | E_type ↓ | E_exist ↓ | E_dir ↓ | E_root ↓ | Tree F1 ↑ "
-        "| scans |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    keys = ("e_type", "e_exist", "e_dir", "e_root", "tree_f1")
-    for kind in ("clean", "noisy"):
-        for seg, label in (("gt", "ground truth"), ("pred", "predicted")):
-            row = get.get((kind, seg))
-            if row is None:
-                continue
-            cells = " | ".join(f"{row[k]:.2f}" for k in keys)
-            lines.append(f"| {kind.capitalize()} | {label} | {cells} | {row['scans']} |")
-        if kind in ttree:
-            cells = " | ".join(f"{v:g}" for v in ttree[kind])
-            lines.append(f"| {kind.capitalize()} | ground truth (thesis) | {cells} | - |")
-    lines += [
-        "",
-        "E_type, E_exist, E_dir pool the counts of all scans; E_root is over scans; Tree F1 is "
-        "the mean of per-scan scores. Parts hidden in a scan are left out of its ground truth; "
-        f"scans skipped because the root part is hidden: {skipped}. "
-        f"Test objects: {objects}. Data: summary.csv, per_object.csv.",
-        "",
-    ]
-    return "\n".join(lines)
-
-
 def _finalize(
     cfg: EvaluateHierarchyConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
@@ -336,7 +148,9 @@ def _finalize(
     ]
     write_csv(work / "per_object.csv", [*head, "segmentation", *tail], per)
     objects = len({r["object_id"] for r in records})
-    (work / "report.md").write_text(_report(cfg, rows, skipped, objects))
+    sources = (cfg.scans, cfg.segmenter, cfg.labeller)
+    report = chapter4_report(cfg.category.name, sources, rows, skipped, objects)
+    (work / "report.md").write_text(report)
     stats: dict[str, float | int | str] = {"category": cfg.category.name, "scans": len(records)}
     for r in rows:
         if r["segmentation"] == "gt":
@@ -347,6 +161,12 @@ def _finalize(
 
 STAGE: Stage[EvaluateHierarchyConfig] = Stage(
     name="evaluate-hierarchy",
+    command="evaluate hierarchy",
+    help=(
+        "Tables 4.1 and 4.2 for one category: part mAP, E_type, E_exist, E_dir, E_root,\n"
+        "Tree F1 (ground-truth and predicted segmentation, clean and noisy scans).\n\n"
+        "Example: artic evaluate hierarchy category=storage_furniture"
+    ),
     conf="evaluate_hierarchy",
     schema=EvaluateHierarchyConfig,
     plan=_plan,

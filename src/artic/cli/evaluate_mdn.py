@@ -10,18 +10,17 @@ coverage), `examples.png` (true axes green, predicted red).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydantic import Field
 
-from artic.artifacts.depth_dataset import DepthDataset
+from artic.artifacts.depth_dataset import DepthDataset, source_objects
 from artic.artifacts.formats import write_csv
-from artic.artifacts.manifest import MANIFEST, read_manifest
 from artic.cli.stage_runner import Plan, Stage, available_cpus
-from artic.cli.train_mdn import KIND, MODEL, CategoryRef
-from artic.config.schemas import StageConfig, Strict
+from artic.config.schemas import StageConfig
 from artic.errors import InputError
+from artic.kinematics.config import CategoryRef, MdnEvaluateConfig
 
 if TYPE_CHECKING:
     from artic.kinematics.data import DepthSplit
@@ -29,16 +28,7 @@ if TYPE_CHECKING:
     from artic.kinematics.predict import Predictor
 
 METHODS = ("Mean", "NN", "ICP", "Ours", "Ours (densest)")
-
-
-class EvaluateOptions(Strict):
-    max_test_images: int | None = Field(None, gt=0)
-    icp_images: int = Field(500, ge=0)
-    batch_size: int = Field(64, gt=0)
-    levels: tuple[Annotated[float, Field(gt=0, lt=1)], ...] = Field(
-        (0.5, 0.9, 0.95), min_length=1, description="nominal coverages, each in (0, 1)"
-    )
-    examples: int = Field(8, ge=0)
+MODEL = "model.pt"
 
 
 class EvaluateMdnConfig(StageConfig):
@@ -50,7 +40,7 @@ class EvaluateMdnConfig(StageConfig):
         description="the generate-dataset folder `depth` was rendered from (the ICP "
         "baseline's template); None: the one recorded in depth's manifest",
     )
-    evaluate: EvaluateOptions
+    evaluate: MdnEvaluateConfig
 
 
 def _plan(cfg: EvaluateMdnConfig, inputs: dict[str, Path]) -> Plan:
@@ -61,7 +51,6 @@ def _plan(cfg: EvaluateMdnConfig, inputs: dict[str, Path]) -> Plan:
 def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
     import torch
 
-    from artic.artifacts.model_file import load_model_file
     from artic.artifacts.object_dataset import ObjectDataset
     from artic.kinematics.baselines import IcpBaseline
     from artic.kinematics.data import DepthSplit, load_split
@@ -69,8 +58,7 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
     from artic.kinematics.predict import Predictor
 
     torch.set_num_threads(cfg.runtime.threads or available_cpus())
-    payload = load_model_file(inputs["model"] / MODEL, KIND, cfg.category.name)
-    predictor = Predictor.from_payload(payload)
+    predictor = Predictor.load(inputs["model"] / MODEL, cfg.category.name)
     ds = DepthDataset.open(inputs["depth"])
     if ds.label_columns != list(predictor.codec.columns):
         raise InputError(f"depth: {inputs['depth']} has other label columns than the model")
@@ -104,32 +92,18 @@ def _write(
     test: DepthSplit,
     result: Evaluation,
 ) -> None:
-    from artic.evaluation.kinematics import METRICS, configuration_unit
+    from artic.evaluation import kinematics as table
     from artic.evaluation.plots import calibration_plot, error_histograms, examples_sheet
 
-    unit = configuration_unit(predictor.joint_type)
-    rows: list[list[float | int | str]] = []
-    for name in METHODS:
-        if name in result.errors:
-            e = result.errors[name]
-            stats = [v for m in METRICS for v in (float(e[m].mean()), float(e[m].std()))]
-            rows.append([name, len(e["position_cm"]), *stats])
-    header = ["method", "images"] + [f"{m}_{s}" for m in METRICS for s in ("mean", "std")]
-    write_csv(tmp / "summary.csv", header, rows)
-    per_image = []
-    for name, e in result.errors.items():
-        for i in range(len(e["position_cm"])):
-            per_image.append([name, i, int(test.object_id[i])] + [float(e[m][i]) for m in METRICS])
-    write_csv(tmp / "errors.csv", ["method", "image", "object_id", *METRICS], per_image)
+    unit = table.configuration_unit(predictor.joint_type)
+    rows = table.summary_rows(result.errors, METHODS)
+    write_csv(tmp / "summary.csv", table.SUMMARY_HEADER, rows)
+    per_image = table.per_image_rows(result.errors, test.object_id)
+    write_csv(tmp / "errors.csv", table.ERRORS_HEADER, per_image)
     columns = list(predictor.codec.columns)
-    groups = _calibration_groups(columns, predictor.dof)
-    levels = sorted(result.coverage)
-    write_csv(
-        tmp / "calibration.csv",
-        ["nominal", *groups],
-        [[lv] + [float(np.nanmean(result.coverage[lv][idx])) for idx in groups.values()]
-         for lv in levels],
-    )  # fmt: skip
+    groups = table.calibration_groups(columns, predictor.dof)
+    calibration = table.calibration_rows(result.coverage, groups)
+    write_csv(tmp / "calibration.csv", ["nominal", *groups], calibration)
     error_histograms(tmp / "errors.png", result.errors, unit)
     calibration_plot(tmp / "calibration.png", result.coverage, groups)
     if cfg.evaluate.examples:
@@ -139,64 +113,10 @@ def _write(
             tmp / "examples.png", test.depth_m(pick), test.labels[pick],
             result.predictions["Ours"][pick], columns, predictor,
         )  # fmt: skip
-    _report(tmp, cfg, rows, result, groups, unit, len(test))
-
-
-def _calibration_groups(columns: list[str], dof: int) -> dict[str, list[int]]:
-    col = {c: i for i, c in enumerate(columns)}
-    origins = [col[f"j{j}_origin_{a}"] for j in range(dof) for a in "xyz"]
-    return {
-        "all predicted columns": list(range(len(columns))),
-        "axis origin": origins,
-        "axis yaw": [col["pose_yaw"]],
-        "configuration": [col[f"j{j}_q"] for j in range(dof)],
-    }
-
-
-def _report(
-    tmp: Path,
-    cfg: EvaluateMdnConfig,
-    rows: list[list[float | int | str]],
-    result: Evaluation,
-    groups: dict[str, list[int]],
-    unit: str,
-    n_test: int,
-) -> None:
-    from artic.evaluation.kinematics import METRICS
-
-    name, n = cfg.category.name, len(METRICS)  # the header names the METRICS in order
-    lines = [
-        f"# Table 3.1: {name}",
-        "",
-        f"{n_test} test images of withheld objects; errors as mean ± std. "
-        "Ours: the mean of the MDN's most likely component, the one of largest weight "
-        "(section 3.3.1); Ours (densest): the component mean of highest mixture density. "
-        "Rot. (thesis' metric): the rotation error as the thesis' evaluation code computes "
-        "it, for comparison with its Table 3.1 (docs/reproduction.md).",
-        "",
-        f"| {name} | Axis Pos. Error (cm) | Axis Rot. Error (deg) "
-        f"| Config. Error ({unit}) | Rot. (thesis' metric, deg) | images |",
-        "|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        cells = [f"{float(r[2 + 2 * k]):.2f} ± {float(r[3 + 2 * k]):.2f}" for k in range(n)]
-        lines.append(f"| {r[0]} | {' | '.join(cells)} | {r[1]} |")
-    lines += [
-        "",
-        "## Calibration of the MDN",
-        "",
-        "Fraction of true values inside the predicted central intervals of each label's "
-        "marginal (mean over the columns of each group).",
-        "",
-        "| nominal | " + " | ".join(groups) + " |",
-        "|---|" + "---|" * len(groups),
-    ]
-    for lv in cfg.evaluate.levels:
-        cells = [f"{100 * np.nanmean(result.coverage[lv][idx]):.1f}%" for idx in groups.values()]
-        lines.append(f"| {100 * lv:.0f}% | " + " | ".join(cells) + " |")
-    lines += ["", "Plots: errors.png, calibration.png, examples.png. Data: summary.csv, "
-              "errors.csv, calibration.csv.", ""]  # fmt: skip
-    (tmp / "report.md").write_text("\n".join(lines))
+    report = table.table_3_1_report(
+        cfg.category.name, rows, result.coverage, groups, cfg.evaluate.levels, unit, len(test)
+    )
+    (tmp / "report.md").write_text(report)
 
 
 def _finalize(
@@ -212,63 +132,21 @@ def _finalize(
     return stats
 
 
-def recorded_objects(depth: Path) -> tuple[list[Path], str]:
-    """Where the object dataset `depth` was rendered from may lie, most likely first,
-    and its content hash, from depth's manifest. A relative recorded path is relative
-    to the directory render-depth ran in: found from the depth folder's own recorded
-    `out` (when the folder has not moved since), else tried beside the current
-    directory."""
-    manifest = read_manifest(depth, expected_stage="render-depth")
-    record = manifest.inputs.get("dataset")
-    if record is None:
-        raise InputError(f"depth: {depth / MANIFEST} records no dataset input; pass objects=PATH")
-    recorded = Path(record.path)
-    if recorded.is_absolute():
-        return [recorded], record.content_hash
-    candidates: list[Path] = []
-    out = Path(str(manifest.config.get("out", "")))
-    here = depth.resolve()
-    if str(out) not in ("", ".") and not out.is_absolute():
-        n = len(out.parts)
-        if len(here.parts) > n and here.parts[-n:] == out.parts:
-            candidates.append(here.parents[n - 1] / recorded)
-    candidates.append(recorded)
-    return candidates, record.content_hash
-
-
 def _input_paths(cfg: EvaluateMdnConfig) -> dict[str, Path]:
     """model, depth and the object dataset depth was rendered from (`objects=`, or the
     one depth's manifest records), checked to be that dataset by its content hash."""
     depth = Path(cfg.depth)
-    try:
-        candidates, expected = recorded_objects(depth)
-    except InputError as err:
-        message = str(err)
-        raise InputError(message if message.startswith("depth:") else f"depth: {message}") from None
-    if cfg.objects is not None:
-        objects = Path(cfg.objects)
-    else:
-        found = [p for p in candidates if (p / MANIFEST).is_file()]
-        if not found:
-            raise InputError(
-                f"objects: the dataset {depth} was rendered from is not at "
-                f"{candidates[0]}; pass objects=PATH (its generate-dataset folder)"
-            )
-        objects = found[0]
-    try:
-        actual = read_manifest(objects, expected_stage="generate-dataset").content_hash
-    except InputError as err:
-        raise InputError(f"objects: {err}") from None
-    if actual != expected:
-        raise InputError(
-            f"objects: {objects} is not the dataset {depth} was rendered from (content hash "
-            f"{actual[:12]}, depth records {expected[:12]}); pass objects=PATH"
-        )
+    objects = source_objects(depth, None if cfg.objects is None else Path(cfg.objects))
     return {"model": Path(cfg.model), "depth": depth, "objects": objects}
 
 
 STAGE: Stage[EvaluateMdnConfig] = Stage(
     name="evaluate-mdn",
+    command="evaluate mdn",
+    help=(
+        "Table 3.1 for one category: Ours vs Mean, NN, ICP, and calibration.\n\n"
+        "Example: artic evaluate mdn category=microwave"
+    ),
     conf="evaluate_mdn",
     schema=EvaluateMdnConfig,
     plan=_plan,

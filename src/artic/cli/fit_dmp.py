@@ -19,25 +19,20 @@ from __future__ import annotations
 
 import csv
 import json
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
-from artic.artifacts.formats import read_npz, write_csv, write_json
-from artic.artifacts.manifest import read_manifest, verify_file
+from artic.artifacts.formats import write_csv, write_json
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig, Strict
-from artic.errors import InputError
-from artic.policies.dmp import DMPConfig, DMPFile, DMPParams, fit_dmp, rollout_dmp
+from artic.planning.demo_files import Demo, DemoSet, load_demos
+from artic.policies.dmp import DMP_JSON, DMPConfig, DMPFile, DMPParams, fit_dmp, rollout_dmp
 
-DMP_JSON = "dmp.json"
 FIT_CSV = "fit.csv"
 FIT_PNG = "fit.png"
-DEMOS_JSON = "demos.json"
 
 
 class TaskRef(Strict):
@@ -60,71 +55,6 @@ class FitDmpConfig(StageConfig):
         None, gt=0, description="fit only the first N successful demos (null: all; thesis: 1)"
     )
     plot: bool = Field(True, description="write fit.png")
-
-
-@dataclass(frozen=True)
-class Demo:
-    """One successful demonstration: t (T,) s from 0; q (T, J) rad."""
-
-    index: int
-    file: str
-    t: NDArray[np.float64]
-    q: NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class DemoSet:
-    task: str
-    control_dt: float
-    n_joints: int
-    demos: list[Demo]
-    n_listed: int
-
-
-def load_demos(folder: Path, task: str, max_demos: int | None = None) -> DemoSet:
-    """The successful demos of a plan-demos folder, checked; InputError names the file."""
-    manifest = read_manifest(folder, expected_stage="plan-demos")
-    index_path = verify_file(folder, manifest, DEMOS_JSON)
-    try:
-        info = json.loads(index_path.read_text())
-        listed = list(info["demos"])
-        found_task, dt, n_joints = str(info["task"]), float(info["control_dt"]), info["n_joints"]
-    except (ValueError, KeyError, TypeError) as err:
-        raise InputError(f"{index_path}: malformed demos index ({err})") from None
-    if found_task != task:
-        raise InputError(
-            f"demos: {folder} holds demos of task '{found_task}', expected '{task}' "
-            f"(task={task}); pass the demos of task {task} or task={found_task}"
-        )
-    if not (isinstance(n_joints, int) and n_joints > 0 and dt > 0):
-        raise InputError(f"{index_path}: n_joints and control_dt must be positive")
-    ok = [d for d in listed if d.get("status") == "ok" and d.get("file")]
-    if not ok:
-        raise InputError(
-            f"{index_path}: no successful demos ({len(listed)} listed, none with status ok)"
-        )
-    demos = [_load_demo(folder, manifest, d, n_joints, dt) for d in ok[:max_demos]]
-    return DemoSet(found_task, dt, n_joints, demos, len(listed))
-
-
-def _load_demo(
-    folder: Path, manifest: Any, entry: dict[str, Any], n_joints: int, dt: float
-) -> Demo:
-    path = verify_file(folder, manifest, str(entry["file"]))
-    try:
-        data = read_npz(path)
-        t, q = data["t"].astype(np.float64), data["q_robot"].astype(np.float64)
-    except (OSError, ValueError, KeyError) as err:
-        raise InputError(f"{path}: not a demo file with t and q_robot ({err})") from None
-    if q.ndim != 2 or q.shape[1] != n_joints:
-        raise InputError(f"{path}: q_robot has shape {q.shape}, expected (T, {n_joints}) joints")
-    if t.shape != (q.shape[0],) or t.shape[0] < 2:
-        raise InputError(f"{path}: t has shape {t.shape}, expected ({q.shape[0]},), T >= 2")
-    if not (np.isfinite(t).all() and np.isfinite(q).all()):
-        raise InputError(f"{path}: t and q_robot must be finite (found NaN or inf)")
-    if not np.allclose(np.diff(t), dt, rtol=1e-6, atol=1e-9):
-        raise InputError(f"{path}: t is not uniform with the control dt {dt} s of {DEMOS_JSON}")
-    return Demo(int(entry.get("index", 0)), str(entry["file"]), t - t[0], q)
 
 
 def _plan(cfg: FitDmpConfig, inputs: dict[str, Path]) -> Plan:
@@ -214,22 +144,13 @@ def _finalize(
     }
 
 
-def read_dmp(folder: Path) -> DMPFile:
-    """The DMPs of a fit-dmp output folder (checked against its manifest)."""
-    manifest = read_manifest(folder, expected_stage="fit-dmp")
-    path = verify_file(folder, manifest, DMP_JSON)
-    try:
-        data = json.loads(path.read_text())
-    except ValueError as err:
-        raise InputError(f"{path}: not JSON ({err})") from None
-    try:
-        return DMPFile.from_json_dict(data)
-    except InputError as err:
-        raise InputError(f"{path}: {err}") from None
-
-
 STAGE: Stage[FitDmpConfig] = Stage(
     name="fit-dmp",
+    help=(
+        "Dynamic movement primitives fitted to demonstrations by LWR (Eq. 2.4-2.7).\n\n"
+        "Example: artic fit-dmp demos=artifacts/demos/drawer"
+    ),
+    task_option=True,
     conf="fit_dmp",
     schema=FitDmpConfig,
     plan=_plan,

@@ -178,6 +178,10 @@ def _finalize(
 
 STAGE: Stage[GenerateDatasetConfig] = Stage(
     name="generate-dataset",
+    help=(
+        "Procedural articulated objects (Appendix A): URDF + OBJ meshes + ObjectSpec JSON.\n\n"
+        "Example: artic generate-dataset category=refrigerator dataset.objects=200"
+    ),
     conf="generate_dataset",
     schema=GenerateDatasetConfig,
     plan=_plan,

@@ -1,11 +1,11 @@
 """What `artic segment`, `build-hierarchy` and `infer-hierarchy` write (docs/formats.md,
 "Hierarchies (Chapter 4)"): the JSON documents, the picture, and the output folder.
 
-An output folder is written atomically: everything goes into the sibling `DIR.partial/`
-(`artifacts.workdir.WorkDir`), which replaces `DIR` only when complete, with a
-`manifest.json` naming the command, its options, the input file and models with their
-sha256, and every output file. An existing `DIR` is replaced only when it is an earlier
-output of the same command; any other non-empty folder is refused.
+An output folder is written atomically, by the stages' own writer: everything goes into
+the sibling `DIR.partial/` (`artifacts.workdir.WorkDir`), which replaces `DIR` only when
+complete, with a `manifest.json` naming the command, its options, the input file and
+models with their sha256, and every output file. An existing `DIR` is replaced only when
+it is an earlier output of the same command; any other non-empty folder is refused.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import shutil
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -22,20 +23,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from artic.artifacts.hashing import sha256_file, sha256_json
-from artic.artifacts.manifest import (
-    LOG,
-    MANIFEST,
-    InputRecord,
-    Manifest,
-    list_outputs,
-    now_iso,
-    outputs_hash,
-    package_versions,
-    read_manifest,
-)
+from artic.artifacts.manifest import LOG, MANIFEST, InputRecord, Manifest, now_iso, read_manifest
 from artic.artifacts.workdir import WorkDir
+from artic.cli.stage_runner import ManifestHead, config_hash_of, log_to, publish, stop_log
 from artic.errors import InputError
-from artic.hierarchy.types import MOTION_TYPES
+from artic.objects.tree import MOTION_TYPES
 
 if TYPE_CHECKING:
     from artic.hierarchy.infer import LabelledHierarchy
@@ -256,7 +248,10 @@ def check_output_folder(out: Path, command: str) -> None:
 
 
 class OutputFolder:
-    """`DIR.partial/` to write into, then the manifest and the atomic rename (`publish`).
+    """`DIR.partial/` to write into, then the manifest and the atomic rename (`publish`),
+    through the stages' own writer (`cli/stage_runner`: `log_to`, `publish`, with
+    `artifacts.workdir.WorkDir` and its lock): the same files and manifest fields as a
+    stage's output.
 
     command: the manifest's stage name. options: the command's settings (its config).
     inputs: name -> file read (hashed into the manifest).
@@ -275,36 +270,22 @@ class OutputFolder:
         self.work = WorkDir(out)
         self.work.prepare(sha256_json({"command": command, "options": options}), fresh=True)
         self.path = self.work.path
-        self.handler = logging.FileHandler(self.path / LOG)
-        self.handler.setFormatter(
-            logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s")
-        )
-        logging.getLogger().addHandler(self.handler)
+        self.handler = log_to(self.path / LOG)
 
     def close_log(self) -> None:
-        logging.getLogger().removeHandler(self.handler)
-        self.handler.close()
+        stop_log(self.handler)
+
+    def abandon(self) -> None:
+        """After bad input: remove the work area (nothing is published)."""
+        self.close_log()
+        with self.work.locked():
+            self.work.leave()
+            shutil.rmtree(self.path, ignore_errors=True)
 
     def publish(self, seed: int, stats: dict[str, float | int | str]) -> Manifest:
         """Write manifest.json and move the folder into place."""
         self.close_log()
-        outputs = list_outputs(self.path)
-        manifest = Manifest(
-            stage=self.command,
-            config=self.options,
-            config_hash=sha256_json({"stage": self.command, "config": self.options}),
-            seed=seed,
-            inputs=self.inputs,
-            outputs=outputs,
-            content_hash=outputs_hash(outputs),
-            versions=package_versions(),
-            started_at=self.started,
-            finished_at=now_iso(),
-            wall_time_s=round(time.perf_counter() - self.t0, 3),
-            stats=stats,
-        )
-        (self.path / MANIFEST).write_text(
-            json.dumps(manifest.model_dump(mode="json"), indent=2, sort_keys=True) + "\n"
-        )
-        self.work.publish()
-        return manifest
+        # the options name no output folder, shard or runtime: all of them are hashed
+        config_hash = config_hash_of(self.command, self.options, ())
+        head = ManifestHead(self.command, self.options, config_hash, seed, self.inputs)
+        return publish(self.work, head, stats, self.started, self.t0)

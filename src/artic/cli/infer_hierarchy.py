@@ -49,7 +49,7 @@ from artic.cli.scan_input import (
 )
 from artic.cli.stage_runner import InternalError
 from artic.errors import InputError
-from artic.hierarchy.types import MOTION_TYPES
+from artic.objects.tree import MOTION_TYPES
 
 if TYPE_CHECKING:
     from artic.hierarchy.infer import (
@@ -103,13 +103,10 @@ def _options_dict(opts: Options, models: dict[str, Path]) -> dict[str, Any]:
 def _write(folder: OutputFolder, command: str, body: Any) -> None:
     """Run `body(folder.path)`; on failure leave no half-written output (bad input) or
     keep DIR.partial/ with the traceback in its log (internal error, exit 1)."""
-    import shutil
-
     try:
         body(folder.path)
     except InputError:
-        folder.close_log()
-        shutil.rmtree(folder.path, ignore_errors=True)
+        folder.abandon()
         raise
     except Exception as err:
         log.error("internal error in %s:\n%s", command, traceback.format_exc())

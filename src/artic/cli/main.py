@@ -1,21 +1,31 @@
 """`artic`: the command-line entry point.
 
-Subcommands are registered here and import their heavy dependencies (numpy, open3d,
-pybullet, hydra) only when they run, so `artic --help` answers quickly.
+One command per registered stage is generated from the stage registry
+(`cli/registry.py`: every module of `artic.cli` defining `STAGE = Stage(...)`), read
+without importing the stage modules; the other commands are written here. Commands
+import their heavy dependencies (numpy, open3d, pybullet, hydra) only when they run, so
+`artic --help` answers quickly.
 """
 
 from __future__ import annotations
 
-import importlib
 import logging
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import typer
 
 from artic import __version__
 from artic.cli.failures import NoTracebacks, OneLineErrors, handle_errors
+from artic.cli.registry import (
+    RegistryError,
+    StageEntry,
+    load_stage,
+    resolve,
+    say_alias,
+    stage_entries,
+)
 
 app = typer.Typer(
     name="artic",
@@ -27,22 +37,6 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-
-#: subcommand -> module exposing STAGE (imported only when the subcommand runs)
-STAGE_MODULES: dict[str, str] = {
-    "generate-dataset": "artic.cli.generate_dataset",
-    "render-depth": "artic.cli.render_depth",
-    "render-scan": "artic.cli.render_scan",  # run as `artic render-depth render=scan`
-    "train-mdn": "artic.cli.train_mdn",
-    "evaluate-mdn": "artic.cli.evaluate_mdn",
-    "plan-demos": "artic.cli.plan_demos",
-    "fit-dmp": "artic.cli.fit_dmp",
-    "policy-search": "artic.cli.policy_search",
-    "evaluate-bootstrap": "artic.cli.evaluate_bootstrap",
-    "train-segmenter": "artic.cli.train_segmenter",
-    "train-hierarchy": "artic.cli.train_hierarchy",
-    "evaluate-hierarchy": "artic.cli.evaluate_hierarchy",
-}
 
 _OVERRIDES = typer.Argument(None, help="Hydra overrides, e.g. category=drawer dataset.objects=50")
 _CFG = typer.Option(False, "--cfg", help="Print the resolved config and exit.")
@@ -65,181 +59,74 @@ def _with_task(overrides: list[str] | None, task: str | None) -> list[str]:
 
 
 def stage_command(command: str, overrides: list[str] | None) -> str:
-    """The stage a subcommand runs: `render-depth render=scan` runs the scan stage
-    (render-depth's config tree, its own schema, stage name and output folder)."""
-    if command == "render-depth" and "render=scan" in (overrides or []):
-        return "render-scan"
-    return command
+    """The stage a command runs (`render-depth render=scan` runs render-scan)."""
+    return resolve(command, overrides).name
 
 
-def load_stage(command: str) -> Any:
-    """The `Stage` behind a subcommand name."""
-    return importlib.import_module(STAGE_MODULES[command]).STAGE
+#: stage name -> module defining its STAGE (read from the registry)
+STAGE_MODULES: dict[str, str] = {name: e.module for name, e in stage_entries().items()}
+__all__ = ["STAGE_MODULES", "app", "load_stage", "main", "stage_command"]
 
 
 def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, force: bool) -> None:
+    """Run the stage behind `artic COMMAND OVERRIDES` (a stage name, or an alias)."""
     from artic.cli.stage_runner import resolved_config, run_stage
     from artic.cli.summary import print_result
 
-    stage = load_stage(stage_command(command, overrides))
+    entry = resolve(command, overrides)
+    stage = load_stage(entry.name)
     if cfg:
         import yaml
 
         typer.echo(yaml.safe_dump(resolved_config(stage, list(overrides or [])), sort_keys=False))
+        say_alias(command, entry)
         return
-    print_result(command, run_stage(stage, list(overrides or []), force=force))
+    result = run_stage(stage, list(overrides or []), force=force)
+    say_alias(command, entry)
+    print_result(" ".join(entry.command), result)
 
 
-@app.command("generate-dataset", context_settings=_EXTRA)
-@handle_errors
-def generate_dataset(
-    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
-) -> None:
-    """Procedural articulated objects (Appendix A): URDF + OBJ meshes + ObjectSpec JSON.
+def _stage_command(entry: StageEntry) -> Callable[..., None]:
+    """The Typer callback of a stage: `[OVERRIDES]... [--task NAME] [--cfg] [--force]`."""
+    name = entry.name
 
-    Example: artic generate-dataset category=refrigerator dataset.objects=200
-    """
-    run_stage_command("generate-dataset", overrides, cfg, force)
+    def with_task(
+        overrides: list[str] | None = _OVERRIDES,
+        task: str | None = _TASK,
+        cfg: bool = _CFG,
+        force: bool = _FORCE,
+    ) -> None:
+        run_stage_command(name, _with_task(overrides, task), cfg, force)
 
+    def without_task(
+        overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
+    ) -> None:
+        run_stage_command(name, overrides, cfg, force)
 
-@app.command("render-depth", context_settings=_EXTRA)
-@handle_errors
-def render_depth(
-    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
-) -> None:
-    """Labelled depth images across each object's articulation (section 3.2.3); with
-    render=scan, fused multi-view point clouds with part labels (Chapter 4).
-
-    Example: artic render-depth dataset=artifacts/objects/refrigerator
-    """
-    run_stage_command("render-depth", overrides, cfg, force)
-
-
-@app.command("train-mdn", context_settings=_EXTRA)
-@handle_errors
-def train_mdn(
-    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
-) -> None:
-    """Train the per-category mixture density network (section 3.2, Eq. 3.1 and 3.2).
-
-    Example: artic train-mdn category=microwave
-    """
-    run_stage_command("train-mdn", overrides, cfg, force)
-
-
-@app.command("train-segmenter", context_settings=_EXTRA)
-@handle_errors
-def train_segmenter(
-    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
-) -> None:
-    """Train the part segmenter of one category on its scans (section 4.3).
-
-    Example: artic train-segmenter category=storage_furniture
-    """
-    run_stage_command("train-segmenter", overrides, cfg, force)
-
-
-@app.command("train-hierarchy", context_settings=_EXTRA)
-@handle_errors
-def train_hierarchy(
-    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
-) -> None:
-    """Train the graph labelling network of one category on its scans (section 4.4).
-
-    Example: artic train-hierarchy category=storage_furniture
-    """
-    run_stage_command("train-hierarchy", overrides, cfg, force)
-
-
-@app.command("plan-demos", context_settings=_EXTRA)
-@handle_errors
-def plan_demos(
-    overrides: list[str] | None = _OVERRIDES,
-    task: str | None = _TASK,
-    cfg: bool = _CFG,
-    force: bool = _FORCE,
-) -> None:
-    """Motion-planned demonstrations on a kinematic model (Algorithm 2).
-
-    Example: artic plan-demos --task drawer
-    """
-    run_stage_command("plan-demos", _with_task(overrides, task), cfg, force)
-
-
-@app.command("fit-dmp", context_settings=_EXTRA)
-@handle_errors
-def fit_dmp(
-    overrides: list[str] | None = _OVERRIDES,
-    task: str | None = _TASK,
-    cfg: bool = _CFG,
-    force: bool = _FORCE,
-) -> None:
-    """Dynamic movement primitives fitted to demonstrations by LWR (Eq. 2.4-2.7).
-
-    Example: artic fit-dmp demos=artifacts/demos/drawer
-    """
-    run_stage_command("fit-dmp", _with_task(overrides, task), cfg, force)
-
-
-@app.command("policy-search", context_settings=_EXTRA)
-@handle_errors
-def policy_search(
-    overrides: list[str] | None = _OVERRIDES,
-    task: str | None = _TASK,
-    cfg: bool = _CFG,
-    force: bool = _FORCE,
-) -> None:
-    """Policy search from the bootstrapped policy or from random init (section 5.2.2).
-
-    Example: artic policy-search --task drawer
-    """
-    run_stage_command("policy-search", _with_task(overrides, task), cfg, force)
+    command: Callable[..., None] = with_task if entry.task_option else without_task
+    command.__name__ = command.__qualname__ = name.replace("-", "_")
+    return handle_errors(command)
 
 
 evaluate_app = typer.Typer(
     help="Evaluation reports on withheld objects (tables of the thesis).", no_args_is_help=True
 )
-app.add_typer(evaluate_app, name="evaluate")
+#: command groups: a stage declared as `command="evaluate mdn"` is `mdn` under `evaluate`
+GROUPS: dict[str, typer.Typer] = {"evaluate": evaluate_app}
 
 
-@evaluate_app.command("mdn", context_settings=_EXTRA)
-@handle_errors
-def evaluate_mdn(
-    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
-) -> None:
-    """Table 3.1 for one category: Ours vs Mean, NN, ICP, and calibration.
-
-    Example: artic evaluate mdn category=microwave
-    """
-    run_stage_command("evaluate-mdn", overrides, cfg, force)
+def _add_stage_commands() -> None:
+    for entry in stage_entries().values():
+        *group, word = entry.command
+        if len(group) > 1 or (group and group[0] not in GROUPS):
+            raise RegistryError(f"{entry.module}: no command group {' '.join(group)}")
+        target = GROUPS[group[0]] if group else app
+        target.command(word, help=entry.help, context_settings=_EXTRA)(_stage_command(entry))
 
 
-@evaluate_app.command("hierarchy", context_settings=_EXTRA)
-@handle_errors
-def evaluate_hierarchy(
-    overrides: list[str] | None = _OVERRIDES, cfg: bool = _CFG, force: bool = _FORCE
-) -> None:
-    """Tables 4.1 and 4.2 for one category: part mAP, E_type, E_exist, E_dir, E_root,
-    Tree F1 (ground-truth and predicted segmentation, clean and noisy scans).
-
-    Example: artic evaluate hierarchy category=storage_furniture
-    """
-    run_stage_command("evaluate-hierarchy", overrides, cfg, force)
-
-
-@evaluate_app.command("bootstrap", context_settings=_EXTRA)
-@handle_errors
-def evaluate_bootstrap(
-    overrides: list[str] | None = _OVERRIDES,
-    task: str | None = _TASK,
-    cfg: bool = _CFG,
-    force: bool = _FORCE,
-) -> None:
-    """Figure 5.2: bootstrapped vs random initialisation over seeds, and success rates.
-
-    Example: artic evaluate bootstrap --task drawer
-    """
-    run_stage_command("evaluate-bootstrap", _with_task(overrides, task), cfg, force)
+_add_stage_commands()
+for _group, _typer in GROUPS.items():
+    app.add_typer(_typer, name=_group)
 
 
 @app.command("predict")

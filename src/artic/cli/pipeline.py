@@ -1,9 +1,11 @@
 """`artic pipeline NAME`: run the stages of `stages/NAME.yaml` in order.
 
-A pipeline file maps stage names to `{cmd, overrides, deps, outs}`. Each stage runs
-in this process through the same runner as its subcommand, so an up-to-date stage is
-skipped by its own manifest check. `deps` must be produced by an earlier stage or
-exist already; `outs` must name the folder the stage writes.
+A pipeline file maps stage names to `{cmd, overrides, deps, outs}`; `cmd` is a
+registered stage's name (`cli/registry.py`), or an alias of one (`render-depth` with
+`render=scan`). Each stage runs in this process through the same runner as its
+subcommand, so an up-to-date stage is skipped by its own manifest check. `deps` must be
+produced by an earlier stage or exist already; `outs` must name the folder the stage
+writes.
 
 A pipeline may declare `vars` with defaults (`vars: {task: drawer}`); `${task}` in any
 override, dep or out is replaced by the value, which `artic pipeline NAME task=tball`
@@ -21,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from rich.console import Console
 from rich.table import Table
 
+from artic.cli.registry import load_stage, resolve, say_alias, stage_entries
 from artic.config.compose import conf_dir
 from artic.errors import InputError
 
@@ -106,14 +109,13 @@ def load_pipeline(path: Path, values: dict[str, str] | None = None) -> Pipeline:
 
 
 def _check(path: Path, pipeline: Pipeline) -> None:
-    from artic.cli.main import STAGE_MODULES
-
+    known = stage_entries()
     produced: set[str] = set()
     for name, stage in pipeline.stages.items():
-        if stage.cmd not in STAGE_MODULES:
+        if stage.cmd not in known:
             raise InputError(
                 f"{path}: stage {name}: unknown cmd '{stage.cmd}' "
-                f"(known: {', '.join(sorted(STAGE_MODULES))})"
+                f"(known: {', '.join(sorted(known))})"
             )
         for dep in stage.deps:
             if _norm(dep) not in produced and not Path(dep).exists():
@@ -134,7 +136,6 @@ def run_pipeline(
     dry_run: bool = False,
     values: dict[str, str] | None = None,
 ) -> None:
-    from artic.cli.main import load_stage, stage_command
     from artic.cli.stage_runner import resolved_config, run_stage
     from artic.config.compose import validate
 
@@ -149,7 +150,8 @@ def run_pipeline(
     # stage's inputs may not exist yet: they are checked when that stage runs)
     planned = []
     for stage_name, spec in pipeline.stages.items():
-        stage = load_stage(stage_command(spec.cmd, spec.overrides))
+        entry = resolve(spec.cmd, spec.overrides)
+        stage = load_stage(entry.name)
         try:
             raw = resolved_config(stage, spec.overrides)
             validate(stage.schema, raw)
@@ -158,8 +160,8 @@ def run_pipeline(
         out = str(raw["out"])
         if spec.outs and _norm(out) not in {_norm(o) for o in spec.outs}:
             raise InputError(f"{path}: stage {stage_name}: writes {out}, not listed in its outs")
-        planned.append((stage_name, spec, stage, out))
-    for stage_name, spec, stage, out in planned:
+        planned.append((stage_name, spec, entry, stage, out))
+    for stage_name, spec, entry, stage, out in planned:
         if dry_run:
             table.add_row(stage_name, spec.cmd, "planned", "", out)
             continue
@@ -167,6 +169,7 @@ def run_pipeline(
             console.print(f"[bold]{stage_name}[/]: artic {spec.cmd} {' '.join(spec.overrides)}")
         t0 = time.perf_counter()
         result = run_stage(stage, spec.overrides, force=force)
+        say_alias(spec.cmd, entry)
         if result.status == "partial":
             raise InputError(f"{path}: stage {stage_name} did not finish: {result.message}")
         table.add_row(stage_name, spec.cmd, result.status, f"{time.perf_counter() - t0:.1f}", out)

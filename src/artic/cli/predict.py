@@ -18,9 +18,6 @@ from numpy.typing import NDArray
 
 from artic.errors import InputError
 
-KIND = "kinematics-mdn"
-
-
 #: a depth image (metres) whose median return is farther than this is in millimetres
 MAX_DEPTH_M = 20.0
 
@@ -144,7 +141,6 @@ def predict(
 ) -> dict[str, Any]:
     """Everything `artic predict` prints, as a dict."""
     t0 = time.perf_counter()
-    from artic.artifacts.model_file import load_model_file
     from artic.geometry.camera import reproject
     from artic.kinematics.predict import Predictor
     from artic.objects.categories import CATEGORIES
@@ -165,7 +161,7 @@ def predict(
         raise InputError(
             f"{path}: no model for {category}; train one with: artic train-mdn category={category}"
         )
-    predictor = Predictor.from_payload(load_model_file(path, KIND, category))
+    predictor = Predictor.load(path, category)
     reprojected = cam != predictor.camera
     if object_mask is not None:
         depth = np.where(object_mask, depth, 0).astype(np.float32)

@@ -55,17 +55,6 @@ class RenderDepthConfig(StageConfig):
     render: RenderConfig
 
 
-def latin_hypercube(
-    rng: np.random.Generator, n: int, limits: list[tuple[float, float]]
-) -> NDArray[np.float64]:
-    """(n, dof) configurations, one per stratum of each joint's range, strata paired at
-    random across joints (Latin hypercube)."""
-    lo = np.array([a for a, _ in limits])
-    hi = np.array([b for _, b in limits])
-    u = np.stack([(rng.permutation(n) + rng.random(n)) / n for _ in limits], axis=1)
-    return lo + u * (hi - lo)
-
-
 @functools.lru_cache(maxsize=2)
 def _dataset(path: str) -> ObjectDataset:
     return ObjectDataset.open(Path(path))
@@ -98,6 +87,7 @@ def render_chunk(cfg: RenderDepthConfig, inputs: dict[str, Path], chunk: int, tm
     """Render the objects of shard `chunk` and write `shards/shard-<chunk>.npz` into tmp."""
     from artic.objects.categories import build
     from artic.objects.labels import image_labels, label_columns
+    from artic.objects.tree import latin_hypercube
     from artic.render.backend import make_backend
     from artic.render.noise import apply_sensor_noise
 
@@ -208,7 +198,7 @@ def _write_preview(
 ) -> None:
     from PIL import Image
 
-    from artic.render.preview import contact_sheet
+    from artic.evaluation.preview import contact_sheet
 
     col = {c: i for i, c in enumerate(columns)}
     axes = [
@@ -229,6 +219,11 @@ def _write_preview(
 
 STAGE: Stage[RenderDepthConfig] = Stage(
     name="render-depth",
+    help=(
+        "Labelled depth images across each object's articulation (section 3.2.3); with\n"
+        "render=scan, fused multi-view point clouds with part labels (Chapter 4).\n\n"
+        "Example: artic render-depth dataset=artifacts/objects/refrigerator"
+    ),
     conf="render_depth",
     schema=RenderDepthConfig,
     plan=_plan,

@@ -1,8 +1,9 @@
-"""`artic render-depth render=scan`: labelled point clouds of each object across its
-articulation, for Chapter 4 (part segmentation and kinematic hierarchies).
+"""`artic render-scan` (alias `artic render-depth render=scan`): labelled point clouds
+of each object across its articulation, for Chapter 4 (part segmentation and kinematic
+hierarchies).
 
-The scan stage shares render-depth's config tree (`conf/render_depth/`, `render=scan`
-selects `render/scan.yaml`) but has its own schema, stage name ("render-scan") and
+The scan stage shares render-depth's config tree (`conf/render_depth/`; its `preset`
+`render=scan` selects `render/scan.yaml`) but has its own schema, stage name ("render-scan") and
 output folder (`artifacts/scans/<category>`). For object i and each of its poses it
 writes a clean cloud (surface samples) and a noisy cloud (K fused Kinect-like views) as
 PLY, in the object frame, with part ids and motion types per point, plus the object's
@@ -126,7 +127,7 @@ def object_poses(
     """(n, dof) poses of one object and where they came from ("poses.json" or
     "latin_hypercube"): the first `configurations` rows of the dataset's poses.json,
     else the Latin hypercube render-depth draws from (seed, object_id)."""
-    from artic.cli.render_depth import latin_hypercube
+    from artic.objects.tree import latin_hypercube
 
     n = cfg.render.configurations
     if not ds.has(object_id, POSES):
@@ -304,6 +305,13 @@ def _write_preview(work: Path, rows: list[IndexRow], cfg: RenderScanConfig) -> N
 
 STAGE: Stage[RenderScanConfig] = Stage(
     name=STAGE_NAME,
+    help=(
+        "Fused multi-view point clouds with part labels and motion types across each\n"
+        "object's articulation (Chapter 4); also run as render-depth render=scan.\n\n"
+        "Example: artic render-scan dataset=artifacts/objects/storage_furniture"
+    ),
+    preset=("render=scan",),
+    alias="render-depth render=scan",
     conf="render_depth",
     schema=RenderScanConfig,
     plan=_plan,

@@ -74,7 +74,17 @@ class Plan:
 class Stage(Generic[C]):
     """What a subcommand tells the runner. `inputs` maps input names to the stage each
     must come from; `input_paths` reads them off the config; `chunk` must be a
-    module-level function (it runs in worker processes)."""
+    module-level function (it runs in worker processes).
+
+    A module of `artic.cli` defining `STAGE = Stage(...)` registers the stage
+    (`cli/registry.py`), and its command is generated from these fields: `help` (the
+    command's help, first paragraph listed by `artic --help`), `command` (the words
+    after `artic`, default the name; "evaluate mdn" is a subcommand of `evaluate`),
+    `task_option` (`--task NAME`, shorthand for `task=NAME`), `preset` (overrides the
+    stage always composes with, e.g. render-scan's `render=scan`) and `alias` (another
+    command line that runs this stage, with a log line saying so: "render-depth
+    render=scan"). The registry reads these from the source without importing the
+    module, so they must be literals."""
 
     name: str
     conf: str
@@ -84,6 +94,11 @@ class Stage(Generic[C]):
     finalize: Callable[[C, dict[str, Path], Path], dict[str, float | int | str]]
     inputs: dict[str, str] = field(default_factory=dict)
     input_paths: Callable[[C], dict[str, Path]] = lambda cfg: {}
+    help: str = ""
+    command: str = ""
+    task_option: bool = False
+    preset: tuple[str, ...] = ()
+    alias: str = ""
 
 
 @dataclass(frozen=True)
@@ -95,7 +110,21 @@ class Result:
 
 
 def resolved_config(stage: Stage[Any], overrides: list[str]) -> dict[str, Any]:
-    return compose(stage.conf, overrides)
+    return compose(stage.conf, with_preset(stage, overrides))
+
+
+def with_preset(stage: Stage[Any], overrides: list[str]) -> list[str]:
+    """`overrides` with the stage's `preset` in front (a preset given again is taken
+    once; the same key with another value is bad input)."""
+    given = {o.partition("=")[0].lstrip("+~"): o for o in overrides if "=" in o}
+    extra = []
+    for preset in stage.preset:
+        key = preset.partition("=")[0]
+        if key not in given:
+            extra.append(preset)
+        elif given[key] != preset:
+            raise InputError(f"{given[key]}: {stage.name} always runs with {preset}")
+    return [*extra, *overrides]
 
 
 def config_hash_of(stage: str, config: dict[str, Any], input_keys: Iterable[str]) -> str:
@@ -135,7 +164,7 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
             if previous is not None:
                 return Result("skipped", out, previous, "up to date")
         already = work.prepare(key, force=force, shared=shards > 1)
-    handler = _log_to(work.path / LOG)
+    handler = log_to(work.path / LOG)
     started, t0 = now_iso(), time.perf_counter()
     restore = _terminate_as_interrupt()
     try:
@@ -161,25 +190,14 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
                         )
                         return Result("partial", out, None, msg)
                     stats = stage.finalize(cfg, paths, work.path)
-                    outputs = list_outputs(work.path)
-                    manifest = Manifest(
-                        stage=stage.name,
-                        config=raw,
-                        config_hash=config_hash,
-                        seed=cfg.seed,
-                        inputs=inputs,
-                        outputs=outputs,
-                        content_hash=outputs_hash(outputs),
-                        versions=package_versions(),
-                        started_at=started,
-                        finished_at=now_iso(),
-                        wall_time_s=round(time.perf_counter() - t0, 3),
-                        stats=stats,
+                    stop_log(handler)
+                    manifest = publish(
+                        work,
+                        ManifestHead(stage.name, raw, config_hash, cfg.seed, inputs),
+                        stats,
+                        started,
+                        t0,
                     )
-                    write_json(work.path / MANIFEST, manifest.model_dump(mode="json"))
-                    logging.getLogger().removeHandler(handler)
-                    handler.close()
-                    work.publish()
                     return Result("complete", out, manifest)
                 claimed = work.claim(todo)
             if claimed:
@@ -206,8 +224,7 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
     finally:
         restore()
         work.leave()
-        logging.getLogger().removeHandler(handler)
-        handler.close()
+        stop_log(handler)
 
 
 #: seconds between looks at chunks other processes are doing
@@ -282,7 +299,7 @@ def _read_inputs(stage: Stage[C], cfg: C) -> dict[str, InputRecord]:
 def _check_integrity(folder: Path, manifest: Manifest) -> None:
     """A manifest edited by hand is refused: its config must give its config hash (as
     the stage that wrote it computes it) and its outputs listing its content hash."""
-    from artic.cli.main import STAGE_MODULES, load_stage
+    from artic.cli.registry import load_stage, stage_entries
 
     where = folder / MANIFEST
     if outputs_hash(manifest.outputs) != manifest.content_hash:
@@ -290,7 +307,7 @@ def _check_integrity(folder: Path, manifest: Manifest) -> None:
             f"{where}: content_hash does not match the listed outputs (edited by hand?); "
             "rerun the stage that made it with --force"
         )
-    if manifest.stage not in STAGE_MODULES:
+    if manifest.stage not in stage_entries():
         return
     keys = set(load_stage(manifest.stage).inputs)
     # outputs made before 2026-11-26 included the input paths in the hash
@@ -302,11 +319,62 @@ def _check_integrity(folder: Path, manifest: Manifest) -> None:
         )
 
 
-def _log_to(path: Path) -> logging.Handler:
+# -- writing an output folder: shared by run_stage and segment / build-hierarchy /
+# infer-hierarchy (cli/hierarchy_output.OutputFolder)
+
+
+def log_to(path: Path) -> logging.Handler:
+    """Copy the log (every level, with tracebacks) into `path`, the folder's artic.log."""
     handler = logging.FileHandler(path)
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
     logging.getLogger().addHandler(handler)
     return handler
+
+
+def stop_log(handler: logging.Handler) -> None:
+    """Stop copying the log into the folder (idempotent)."""
+    logging.getLogger().removeHandler(handler)
+    handler.close()
+
+
+@dataclass(frozen=True)
+class ManifestHead:
+    """What a manifest says about how an output was made: the stage (or command), its
+    resolved config and config hash, the seed and the inputs."""
+
+    stage: str
+    config: dict[str, Any]
+    config_hash: str
+    seed: int
+    inputs: dict[str, InputRecord]
+
+
+def publish(
+    work: WorkDir, head: ManifestHead, stats: dict[str, float | int | str], started: str, t0: float
+) -> Manifest:
+    """Write `manifest.json` (every file of the work area, its content hash, the
+    versions, the times) into the work area, then rename it to the output folder, under
+    the work area's lock. `started`/`t0`: `now_iso()` / `time.perf_counter()` at the
+    start of the run."""
+    with work.locked():
+        outputs = list_outputs(work.path)
+        manifest = Manifest(
+            stage=head.stage,
+            config=head.config,
+            config_hash=head.config_hash,
+            seed=head.seed,
+            inputs=head.inputs,
+            outputs=outputs,
+            content_hash=outputs_hash(outputs),
+            versions=package_versions(),
+            started_at=started,
+            finished_at=now_iso(),
+            wall_time_s=round(time.perf_counter() - t0, 3),
+            stats=stats,
+        )
+        write_json(work.path / MANIFEST, manifest.model_dump(mode="json"))
+        work.publish()
+    return manifest
 
 
 def available_cpus() -> int:

@@ -24,7 +24,7 @@ import dataclasses
 import json
 import logging
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 from pydantic import Field
 
@@ -33,64 +33,34 @@ from artic.artifacts.scan_dataset import ScanDataset
 from artic.artifacts.timings import data_columns, write_epoch_timings
 from artic.artifacts.workdir import WorkDir
 from artic.cli.stage_runner import Plan, Stage
-from artic.cli.train_mdn import training_device
-from artic.cli.train_segmenter import CategoryRef, DataConfig, training_objects
-from artic.config.schemas import TRAIN_THREADS_HELP, Strict, TrainingStageConfig
+from artic.config.schemas import TrainingStageConfig
 from artic.errors import InputError
+from artic.hierarchy.config import (
+    CategoryName,
+    CloudDataConfig,
+    GraphNetConfig,
+    LabellerTrainConfig,
+    PartGraphConfig,
+    PretrainConfig,
+)
 
 if TYPE_CHECKING:
     from artic.hierarchy.fit_labeller import LabelledGraph
 
-KIND = "hierarchy-gnn"
 MODEL = "model.pt"
 METRICS = "metrics.csv"
 PRETRAIN_METRICS = "pretrain.csv"
 log = logging.getLogger("artic")
 
 
-class GraphSection(Strict):
-    """Part-graph construction (section 4.4.1); saved with the model for inference."""
-
-    contact_threshold: float = Field(0.05, gt=0, description="metres; closer parts get an edge")
-    points_per_node: int = Field(128, gt=0, description="points per part for the PointNet")
-
-
-class NetworkSection(Strict):
-    encoder_widths: tuple[int, ...] = Field((32, 64, 128), min_length=1)
-    decoder_points: int = Field(128, gt=0, description="points the autoencoder emits")
-    hidden: int = Field(64, gt=0, description="GraphSAGE width")
-    head_hidden: int = Field(64, gt=0, description="hidden width of the MLP heads")
-    num_layers: int = Field(3, gt=0, description="convolution + edge pooling levels (3)")
-
-
-class PretrainSection(Strict):
-    epochs: int = Field(500, ge=0, description="autoencoder epochs (4.4.3: 500; 0: none)")
-    batch_size: int = Field(64, gt=0, description="part point sets per step")
-    lr: float = Field(1e-3, gt=0, description="Nesterov SGD (4.4.3: 1e-3)")
-    momentum: float = Field(0.9, gt=0, lt=1)
-    max_sets: int | None = Field(
-        None, gt=0, description="a seeded subset of at most N part point sets (null: all)"
-    )
-
-
-class TrainSection(Strict):
-    epochs: int = Field(30, gt=0, description="4.4.3: 30")
-    batch_size: int = Field(16, gt=0, description="graphs per step")
-    lr: float = Field(1e-3, gt=0, description="Adam (4.4.3: 1e-3)")
-    weight_decay: float = Field(0.0, ge=0)
-    patience: int = Field(10, gt=0, description="epochs without a better val loss")
-    device: Literal["auto", "cpu", "cuda"] = "auto"
-    threads: int = Field(2, ge=1, description=TRAIN_THREADS_HELP)
-
-
 class TrainHierarchyConfig(TrainingStageConfig):
-    category: CategoryRef
+    category: CategoryName
     scans: str = Field(description="a render-scan output folder of the category")
-    graph: GraphSection
-    model: NetworkSection
-    data: DataConfig
-    pretrain: PretrainSection
-    train: TrainSection
+    graph: PartGraphConfig
+    model: GraphNetConfig
+    data: CloudDataConfig
+    pretrain: PretrainConfig
+    train: LabellerTrainConfig
 
 
 def _plan(cfg: TrainHierarchyConfig, inputs: dict[str, Path]) -> Plan:
@@ -98,88 +68,26 @@ def _plan(cfg: TrainHierarchyConfig, inputs: dict[str, Path]) -> Plan:
     return Plan([cfg.pretrain.epochs + cfg.train.epochs], "epochs")
 
 
-def load_examples(
-    ds: ScanDataset, objects: list[int], cfg: TrainHierarchyConfig
-) -> tuple[list[LabelledGraph], int]:
-    """Labelled part graphs of the training clouds of `objects`, and the number of clouds
-    skipped (fewer than two parts, or the root hidden)."""
-    import numpy as np
-
-    from artic.hierarchy.fit_labeller import make_example
-    from artic.hierarchy.graph import PartGraphConfig
-
-    graph_cfg = PartGraphConfig(**cfg.graph.model_dump())
-    rows = ds.select("train", cfg.data.kinds, objects)
-    if cfg.data.max_poses is not None:
-        rows = [r for r in rows if r.pose < cfg.data.max_poses]
-    trees = {o: ds.tree(o) for o in objects}
-    examples, skipped = [], 0
-    for row in rows:
-        cloud = ds.cloud(row)
-        assert cloud.part_id is not None
-        rng = np.random.default_rng([cfg.seed, row.object_id, row.pose, row.kind == "noisy"])
-        example = make_example(cloud.points, cloud.part_id, trees[row.object_id], rng, graph_cfg)
-        if example is None:
-            skipped += 1
-        else:
-            examples.append(example)
-    if not examples:
-        raise InputError(f"scans: {ds.root} has no usable clouds of objects {objects[:5]}...")
-    return examples, skipped
-
-
 def _cached(
     ds: ScanDataset, objects: list[int], cfg: TrainHierarchyConfig, cache: Path
 ) -> tuple[list[LabelledGraph], int]:
     """`load_examples`, stored in the resume folder (specific to the config and input
-    hashes) on first use: a torch file of tensors and plain data (`_encode`), read with
-    `weights_only=True`; a corrupt one is an InputError naming it."""
+    hashes) on first use: a torch file of tensors and plain data (`fit_labeller.encode`),
+    read with `weights_only=True`; a corrupt one is an InputError naming it."""
     from artic.artifacts.model_file import load_torch_file, save_torch_file
-    from artic.hierarchy.fit_labeller import LabelledGraph
+    from artic.hierarchy.fit_labeller import LabelledGraph, decode, encode, load_examples
 
     if cache.is_file():
         stored = load_torch_file(cache, "checkpoint")
         try:
-            examples = [LabelledGraph(*(_decode(v) for v in e)) for e in stored["examples"]]
+            examples = [LabelledGraph(*(decode(v) for v in e)) for e in stored["examples"]]
             return examples, int(stored["skipped"])
         except (KeyError, TypeError, ValueError) as err:
             raise InputError(f"{cache}: not a readable checkpoint ({err})") from None
-    examples, skipped = load_examples(ds, objects, cfg)
-    save_torch_file(cache, {"examples": [[_encode(v) for v in e] for e in examples],
+    examples, skipped = load_examples(ds, objects, cfg.data, cfg.graph, cfg.seed)
+    save_torch_file(cache, {"examples": [[encode(v) for v in e] for e in examples],
                             "skipped": skipped})  # fmt: skip
     return examples, skipped
-
-
-def _encode(value: Any) -> Any:
-    """A training example's parts (dataclasses of numpy arrays and scalars, tuples) as
-    tensors and plain data that `_decode` turns back into equal objects of the same types
-    (arrays keep their dtype, numpy scalars stay numpy scalars)."""
-    import numpy as np
-    import torch
-
-    if isinstance(value, np.ndarray | np.generic):
-        return {"numpy": torch.from_numpy(np.array(value)), "scalar": isinstance(value, np.generic)}
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        fields = {f.name: _encode(getattr(value, f.name)) for f in dataclasses.fields(value)}
-        return {"dataclass": type(value).__name__, "fields": fields}
-    if type(value) in (tuple, list):
-        return type(value)(_encode(v) for v in value)
-    return value
-
-
-def _decode(value: Any) -> Any:
-    from artic.hierarchy import types
-
-    if isinstance(value, dict) and "numpy" in value:
-        array = value["numpy"].numpy()
-        return array[()] if value["scalar"] else array
-    if isinstance(value, dict) and "dataclass" in value:
-        known = (types.PartGraph, types.GraphLabels, types.KinematicTree, types.JointAxis)
-        cls: Any = {c.__name__: c for c in known}[value["dataclass"]]
-        return cls(**{k: _decode(v) for k, v in value["fields"].items()})
-    if type(value) in (tuple, list):
-        return type(value)(_decode(v) for v in value)
-    return value
 
 
 def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
@@ -189,7 +97,6 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
 
     from artic.artifacts.model_file import load_torch_file, save_torch_file
     from artic.hierarchy.fit_labeller import (
-        LabellerFitConfig,
         LabellerFitState,
         autoencoder_chamfer,
         fit_labeller,
@@ -197,12 +104,13 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
         pretrain_autoencoder,
         score_labeller,
     )
-    from artic.hierarchy.gnn import GraphLabellingNet, GraphNetConfig, PointAutoencoder
-    from artic.hierarchy.graph import PartGraphConfig
+    from artic.hierarchy.fit_segmenter import training_objects
+    from artic.hierarchy.gnn import GraphLabellingNet, PointAutoencoder
     from artic.hierarchy.models import save_labeller
+    from artic.learning import trainer
 
-    torch.set_num_threads(cfg.train.threads)
-    device = training_device(cfg.train.device)
+    m, p, t = cfg.model, cfg.pretrain, cfg.train
+    device = trainer.start_training(t)
     ds = ScanDataset.open_category(inputs["scans"], cfg.category.name)
     split = training_objects(ds, cfg.data)
     resume = WorkDir(Path(cfg.out)).resume_dir("train-hierarchy")
@@ -210,51 +118,36 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     val, skipped_val = _cached(ds, split.val, cfg, resume / "val.pt")
     log.info("train-hierarchy: %d training and %d validation graphs", len(train), len(val))
 
-    m, p, t = cfg.model, cfg.pretrain, cfg.train
-    net_cfg = GraphNetConfig(
-        m.encoder_widths, m.decoder_points, m.hidden, m.head_hidden, m.num_layers
-    )
     torch.manual_seed(cfg.seed)
-    autoencoder = PointAutoencoder(net_cfg.encoder_widths, net_cfg.decoder_points).to(device)
+    autoencoder = PointAutoencoder(m.encoder_widths, m.decoder_points).to(device)
     ae_optimizer = torch.optim.SGD(
         autoencoder.parameters(), lr=p.lr, momentum=p.momentum, nesterov=True
     )
-    model = GraphLabellingNet(net_cfg, encoder=autoencoder.encoder).to(device)
+    model = GraphLabellingNet(m, encoder=autoencoder.encoder).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
+    # the autoencoder shares its encoder with the model
+    parts = {"autoencoder": autoencoder, "model": model, "ae_optimizer": ae_optimizer,
+             "optimizer": optimizer}  # fmt: skip
     last = resume / "last.pt"
-    state = LabellerFitState()
-    if last.is_file():  # weights_only; a corrupt checkpoint is an InputError naming it
-        saved = load_torch_file(last, "checkpoint", map_location=device)
-        autoencoder.load_state_dict(saved["autoencoder"])  # shares the encoder with model
-        model.load_state_dict(saved["model"])
-        ae_optimizer.load_state_dict(saved["ae_optimizer"])
-        optimizer.load_state_dict(saved["optimizer"])
-        state = LabellerFitState.from_dict(saved["state"])
+    # weights_only; a corrupt checkpoint is an InputError naming it
+    saved = load_torch_file(last, "checkpoint", map_location=device) if last.is_file() else None
+    state = trainer.restore(parts, saved, LabellerFitState)
 
     def checkpoint(s: LabellerFitState) -> None:
-        payload = {
-            "autoencoder": autoencoder.state_dict(), "model": model.state_dict(),
-            "ae_optimizer": ae_optimizer.state_dict(), "optimizer": optimizer.state_dict(),
-        }  # fmt: skip
-        save_torch_file(last, {**payload, "state": s.to_dict()})
+        save_torch_file(last, trainer.checkpoint(parts, s))
 
-    fit_cfg = LabellerFitConfig(
-        p.epochs, p.batch_size, p.lr, p.momentum, t.epochs, t.batch_size, t.lr,
-        t.weight_decay, t.patience, cfg.seed,
-    )  # fmt: skip
-    parts = part_point_sets(train)
-    if p.max_sets is not None and len(parts) > p.max_sets:
-        chosen = np.random.default_rng([cfg.seed, 0]).choice(len(parts), p.max_sets, replace=False)
-        parts = parts[torch.from_numpy(np.sort(chosen))]
+    sets = part_point_sets(train)
+    if p.max_sets is not None and len(sets) > p.max_sets:
+        chosen = np.random.default_rng([cfg.seed, 0]).choice(len(sets), p.max_sets, replace=False)
+        sets = sets[torch.from_numpy(np.sort(chosen))]
     state = pretrain_autoencoder(
-        autoencoder, ae_optimizer, parts, fit_cfg, state, device, checkpoint
+        autoencoder, ae_optimizer, sets, p, cfg.seed, state, device, checkpoint
     )
     val_chamfer = autoencoder_chamfer(autoencoder, part_point_sets(val), p.batch_size, device)
-    state = fit_labeller(model, optimizer, train, val, fit_cfg, state, device, checkpoint)
+    state = fit_labeller(model, optimizer, train, val, t, cfg.seed, state, device, checkpoint)
     assert state.best_weights is not None
     model.load_state_dict(state.best_weights)
     scores = score_labeller(model, val)
-    graph_cfg = PartGraphConfig(**cfg.graph.model_dump())
     uncovered = sum(len(e.labels.uncovered) for e in train)
     meta: dict[str, Any] = {
         "data": {"path": str(inputs["scans"]), "content_hash": ds.manifest.content_hash},
@@ -267,13 +160,13 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
         "uncovered_tree_edges": uncovered,
         "tree_edges": sum(len(e.tree.edges) for e in train),
         "pretrain_epochs": state.pretrain_epoch,
-        "pretrain_sets": len(parts),
+        "pretrain_sets": len(sets),
         "val_chamfer": val_chamfer,
         "best_epoch": state.best_epoch,
         "best_val_loss": state.best_val,
         "val_metrics_gt_segmentation": dataclasses.asdict(scores),
     }
-    save_labeller(tmp / MODEL, cfg.category.name, model, graph_cfg, meta)
+    save_labeller(tmp / MODEL, cfg.category.name, model, cfg.graph, meta)
     columns = data_columns(state.history, ["epoch"])
     write_csv(tmp / METRICS, columns, [[h[c] for c in columns] for h in state.history])
     write_csv(
@@ -284,7 +177,7 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     write_epoch_timings(tmp, {"pretrain": state.pretrain_history, "train": state.history})
     info = {k: v for k, v in meta.items() if not k.endswith("_objects")}
     write_json(tmp / "model.json", info | {
-        "network": dataclasses.asdict(net_cfg), "graph": cfg.graph.model_dump(),
+        "network": m.model_dump(), "graph": cfg.graph.model_dump(),
         "device": str(device), "epochs_run": state.epoch, "stopped_early": state.stopped_early,
         "n_train_objects": len(split.train), "n_val_objects": len(split.val),
     })  # fmt: skip
@@ -341,6 +234,10 @@ def _finalize(
 
 STAGE: Stage[TrainHierarchyConfig] = Stage(
     name="train-hierarchy",
+    help=(
+        "Train the graph labelling network of one category on its scans (section 4.4).\n\n"
+        "Example: artic train-hierarchy category=storage_furniture"
+    ),
     conf="train_hierarchy",
     schema=TrainHierarchyConfig,
     plan=_plan,

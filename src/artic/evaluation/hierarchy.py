@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from artic.hierarchy.types import GraphLabelling, KinematicTree
+from artic.objects.tree import GraphLabelling, KinematicTree
 
 
 def match_parts(

@@ -75,7 +75,7 @@ def examples_sheet(
     """Depth images with the true (green) and predicted (red) axes."""
     from PIL import Image
 
-    from artic.render.preview import colourise, draw_axes, scaled
+    from artic.evaluation.preview import colourise, draw_axes, scaled
 
     col = {c: i for i, c in enumerate(columns)}
     scale = max(1, 256 // predictor.camera.width)

@@ -15,17 +15,20 @@ draws its order from (seed, phase, e). No file access here.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import torch
 from numpy.typing import NDArray
 
+from artic.errors import InputError
 from artic.evaluation.hierarchy import HierarchyMetrics, hierarchy_counts, summarize
+from artic.hierarchy.config import LabellerTrainConfig, PretrainConfig
 from artic.hierarchy.gnn import (
     GraphLabellingNet,
     PointAutoencoder,
@@ -39,8 +42,14 @@ from artic.hierarchy.gnn import (
 )
 from artic.hierarchy.graph import PartGraphConfig, build_part_graph, graph_labels
 from artic.hierarchy.tree import extract_tree
-from artic.hierarchy.types import GraphLabels, KinematicTree, PartGraph
+from artic.hierarchy.types import GraphLabels, PartGraph
+from artic.learning import trainer
 from artic.learning.fit_state import FitState
+from artic.objects.tree import JointAxis, KinematicTree
+
+if TYPE_CHECKING:
+    from artic.artifacts.scan_dataset import ScanDataset
+    from artic.hierarchy.config import CloudDataConfig
 
 log = logging.getLogger("artic")
 
@@ -112,21 +121,6 @@ def make_example(
     return LabelledGraph(graph, graph_labels(graph, sub), sub)
 
 
-@dataclass(frozen=True)
-class LabellerFitConfig:
-    pretrain_epochs: int
-    pretrain_batch_size: int  # part point sets per step
-    pretrain_lr: float
-    pretrain_momentum: float
-    epochs: int
-    batch_size: int  # graphs per step
-    lr: float
-    weight_decay: float
-    patience: int
-    seed: int
-    log_every_s: float = 30.0
-
-
 def part_point_sets(examples: Sequence[LabelledGraph]) -> torch.Tensor:
     """Every node's points of every example: (sum of P, K, 3) float32."""
     return torch.from_numpy(np.concatenate([e.graph.node_points for e in examples]))
@@ -136,21 +130,22 @@ def pretrain_autoencoder(
     autoencoder: PointAutoencoder,
     optimizer: torch.optim.Optimizer,
     points: torch.Tensor,
-    cfg: LabellerFitConfig,
+    cfg: PretrainConfig,
+    seed: int,
     state: LabellerFitState,
     device: torch.device,
     on_epoch: Callable[[LabellerFitState], None],
 ) -> LabellerFitState:
     """Chamfer-distance autoencoder epochs over part point sets (M, K, 3) until
-    `cfg.pretrain_epochs`; `on_epoch(state)` after each."""
+    `cfg.epochs`; `on_epoch(state)` after each. No validation, so no early stopping."""
     autoencoder.to(device)
-    while state.pretrain_epoch < cfg.pretrain_epochs:
+    while state.pretrain_epoch < cfg.epochs:
         t0 = time.perf_counter()
-        order = np.random.default_rng([cfg.seed, PRETRAIN, state.pretrain_epoch])
+        order = np.random.default_rng([seed, PRETRAIN, state.pretrain_epoch])
         index = order.permutation(len(points))
         total = 0.0
-        for start in range(0, len(index), cfg.pretrain_batch_size):
-            chunk = torch.from_numpy(index[start : start + cfg.pretrain_batch_size])
+        for start in range(0, len(index), cfg.batch_size):
+            chunk = torch.from_numpy(index[start : start + cfg.batch_size])
             batch = points[chunk].to(device)
             total += pretrain_step(autoencoder, optimizer, batch) * len(chunk)
         state.pretrain_epoch += 1
@@ -159,10 +154,10 @@ def pretrain_autoencoder(
         state.pretrain_history.append(
             {"epoch": state.pretrain_epoch, "chamfer": chamfer, "seconds": seconds}
         )
-        if state.pretrain_epoch % 10 == 0 or state.pretrain_epoch == cfg.pretrain_epochs:
+        if state.pretrain_epoch % 10 == 0 or state.pretrain_epoch == cfg.epochs:
             log.info(
                 "pretrain epoch %d/%d: Chamfer %.5f, %.1f s",
-                state.pretrain_epoch, cfg.pretrain_epochs, chamfer, seconds,
+                state.pretrain_epoch, cfg.epochs, chamfer, seconds,
             )  # fmt: skip
         on_epoch(state)
     return state
@@ -173,17 +168,19 @@ def fit_labeller(
     optimizer: torch.optim.Optimizer,
     train: Sequence[LabelledGraph],
     val: Sequence[LabelledGraph],
-    cfg: LabellerFitConfig,
+    cfg: LabellerTrainConfig,
+    seed: int,
     state: LabellerFitState,
     device: torch.device,
     on_epoch: Callable[[LabellerFitState], None],
 ) -> LabellerFitState:
     """Labelling-network epochs until `cfg.epochs` or early stopping on the validation
-    loss; `on_epoch(state)` after each."""
+    loss (`learning.trainer.fit`); `on_epoch(state)` after each."""
     model.to(device)
-    while state.epoch < cfg.epochs and not state.stopped_early:
-        t0 = time.perf_counter()
-        order = np.random.default_rng([cfg.seed, TRAIN, state.epoch]).permutation(len(train))
+    names = ("loss", "motion", "exists", "direction", "root")
+
+    def run_epoch(epoch: int) -> trainer.EpochResult:
+        order = np.random.default_rng([seed, TRAIN, epoch]).permutation(len(train))
         sums = np.zeros(5)
         for start in range(0, len(order), cfg.batch_size):
             chosen = [train[i] for i in order[start : start + cfg.batch_size]]
@@ -192,20 +189,14 @@ def fit_labeller(
             sums += np.array([float(terms.total), *terms[1:]]) * len(chosen)
         train_terms = sums / max(len(train), 1)
         val_terms = validate_labeller(model, val, cfg.batch_size, device)
-        state.end_epoch(val_terms[0], model, cfg.patience)
-        seconds = time.perf_counter() - t0
-        names = ("loss", "motion", "exists", "direction", "root")
-        row: dict[str, float] = {"epoch": state.epoch}
-        row |= {f"train_{n}": float(v) for n, v in zip(names, train_terms, strict=True)}
+        row = {f"train_{n}": float(v) for n, v in zip(names, train_terms, strict=True)}
         row |= {f"val_{n}": float(v) for n, v in zip(names, val_terms, strict=True)}
-        state.history.append(row | {"seconds": seconds})
-        log.info(
-            "epoch %d/%d: train loss %.3f, val loss %.3f (best %.3f at %d), %.1f s",
-            state.epoch, cfg.epochs, train_terms[0], val_terms[0], state.best_val,
-            state.best_epoch, seconds,
-        )  # fmt: skip
-        on_epoch(state)
-    return state
+        return trainer.EpochResult(val_terms[0], row)
+
+    def summary(r: trainer.EpochResult) -> str:
+        return f"train loss {r.metrics['train_loss']:.3f}, val loss {r.val_loss:.3f}"
+
+    return trainer.fit(model, state, cfg.epochs, cfg.patience, run_epoch, on_epoch, summary)
 
 
 def _batch(examples: Sequence[LabelledGraph], device: torch.device) -> tuple[Any, Any]:
@@ -254,3 +245,61 @@ def autoencoder_chamfer(
             batch = points[start : start + batch_size].to(device)
             total += float(chamfer_distance(autoencoder(batch), batch).sum())
     return total / max(len(points), 1)
+
+
+def load_examples(
+    ds: ScanDataset,
+    objects: list[int],
+    data: CloudDataConfig,
+    graph_cfg: PartGraphConfig,
+    seed: int,
+) -> tuple[list[LabelledGraph], int]:
+    """Labelled part graphs of the training clouds of `objects` (kinds and poses per
+    `data`; each seeded from (seed, object, pose, noisy)), and the number of clouds
+    skipped (fewer than two parts, or the root hidden)."""
+    rows = ds.select("train", data.kinds, objects)
+    if data.max_poses is not None:
+        rows = [r for r in rows if r.pose < data.max_poses]
+    trees = {o: ds.tree(o) for o in objects}
+    examples, skipped = [], 0
+    for row in rows:
+        cloud = ds.cloud(row)
+        assert cloud.part_id is not None
+        rng = np.random.default_rng([seed, row.object_id, row.pose, row.kind == "noisy"])
+        example = make_example(cloud.points, cloud.part_id, trees[row.object_id], rng, graph_cfg)
+        if example is None:
+            skipped += 1
+        else:
+            examples.append(example)
+    if not examples:
+        raise InputError(f"scans: {ds.root} has no usable clouds of objects {objects[:5]}...")
+    return examples, skipped
+
+
+def encode(value: Any) -> Any:
+    """A training example's parts (dataclasses of numpy arrays and scalars, tuples) as
+    tensors and plain data, which a torch file loads with `weights_only=True`, and which
+    `decode` turns back into equal objects of the same types (arrays keep their dtype,
+    numpy scalars stay numpy scalars)."""
+    if isinstance(value, np.ndarray | np.generic):
+        return {"numpy": torch.from_numpy(np.array(value)), "scalar": isinstance(value, np.generic)}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = {f.name: encode(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return {"dataclass": type(value).__name__, "fields": fields}
+    if type(value) in (tuple, list):
+        return type(value)(encode(v) for v in value)
+    return value
+
+
+def decode(value: Any) -> Any:
+    """The inverse of `encode`."""
+    if isinstance(value, dict) and "numpy" in value:
+        array = value["numpy"].numpy()
+        return array[()] if value["scalar"] else array
+    if isinstance(value, dict) and "dataclass" in value:
+        known = (PartGraph, GraphLabels, KinematicTree, JointAxis)
+        cls: Any = {c.__name__: c for c in known}[value["dataclass"]]
+        return cls(**{k: decode(v) for k, v in value["fields"].items()})
+    if type(value) in (tuple, list):
+        return type(value)(decode(v) for v in value)
+    return value

@@ -17,18 +17,20 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import torch
 from numpy.typing import NDArray
 
+from artic.errors import InputError
 from artic.evaluation.segmentation import (
     mean_average_precision,
     motion_type_accuracy,
     object_detections,
 )
+from artic.hierarchy.config import AugmentConfig, CloudDataConfig, SegmenterTrainConfig
 from artic.hierarchy.pointnet2 import farthest_point_indices
 from artic.hierarchy.segmentation import (
     InferenceConfig,
@@ -39,9 +41,16 @@ from artic.hierarchy.segmentation import (
     segmentation_loss,
     train_step,
 )
+from artic.learning import trainer
 from artic.learning.fit_state import FitState
 
+if TYPE_CHECKING:
+    from artic.artifacts.scan_dataset import ObjectSplit, ScanDataset
+
 log = logging.getLogger("artic")
+
+#: seconds between progress lines within an epoch
+LOG_EVERY_S = 30.0
 
 
 class PreparedCloud(NamedTuple):
@@ -111,15 +120,6 @@ class SegmentationData:
         )
 
 
-@dataclass(frozen=True)
-class AugmentConfig:
-    """rotate_z_deg: rotation about z drawn uniformly in +-this, degrees (0: none).
-    jitter_m: standard deviation of per-point Gaussian noise, metres (0: none)."""
-
-    rotate_z_deg: float = 0.0
-    jitter_m: float = 0.0
-
-
 def augment(points: torch.Tensor, cfg: AugmentConfig, generator: torch.Generator) -> torch.Tensor:
     """Randomly rotate each cloud of (B, S, 3) about z and jitter its points (CPU generator)."""
     out = points
@@ -136,19 +136,6 @@ def augment(points: torch.Tensor, cfg: AugmentConfig, generator: torch.Generator
     return out
 
 
-@dataclass(frozen=True)
-class SegmenterFitConfig:
-    epochs: int
-    batch_size: int
-    lr: float
-    weight_decay: float
-    patience: int
-    seed: int
-    augment: AugmentConfig = field(default_factory=AugmentConfig)
-    loss: LossWeights = field(default_factory=LossWeights)
-    log_every_s: float = 30.0
-
-
 class ValidationRecord(NamedTuple):
     loss: float  # mean total loss per cloud
     matched_iou: float  # mean soft IoU of the Hungarian-matched masks
@@ -160,59 +147,64 @@ def fit_segmenter(
     optimizer: torch.optim.Optimizer,
     train: SegmentationData,
     val: SegmentationData,
-    cfg: SegmenterFitConfig,
+    cfg: SegmenterTrainConfig,
+    augmentation: AugmentConfig,
+    seed: int,
     state: FitState,
     device: torch.device,
     on_epoch: Callable[[FitState], None],
+    loss: LossWeights | None = None,
 ) -> FitState:
-    """Train from `state` until `cfg.epochs` or early stopping; `on_epoch(state)` after
-    each epoch (state.epoch = epochs done)."""
+    """Train from `state` until `cfg.epochs` or early stopping (`learning.trainer.fit`);
+    `on_epoch(state)` after each epoch (state.epoch = epochs done)."""
     model.to(device)
-    while state.epoch < cfg.epochs and not state.stopped_early:
-        t0 = time.perf_counter()
-        train_loss, train_iou = train_epoch(model, optimizer, train, cfg, state.epoch, device)
-        v = validate(model, val, cfg.batch_size, device, cfg.loss)
-        state.end_epoch(v.loss, model, cfg.patience)
-        seconds = time.perf_counter() - t0
-        state.history.append(
-            {"epoch": state.epoch, "train_loss": train_loss, "train_matched_iou": train_iou,
-             "val_loss": v.loss, "val_matched_iou": v.matched_iou,
-             "val_motion_accuracy": v.motion_accuracy, "seconds": seconds}
-        )  # fmt: skip
-        log.info(
-            "epoch %d/%d: train loss %.3f, val loss %.3f (best %.3f at %d), val IoU %.3f, "
-            "%.0f s",
-            state.epoch, cfg.epochs, train_loss, v.loss, state.best_val, state.best_epoch,
-            v.matched_iou, seconds,
-        )  # fmt: skip
-        on_epoch(state)
-    return state
+    weights = loss or LossWeights()
+
+    def run_epoch(epoch: int) -> trainer.EpochResult:
+        train_loss, train_iou = train_epoch(
+            model, optimizer, train, cfg, augmentation, seed, epoch, device, weights
+        )
+        v = validate(model, val, cfg.batch_size, device, weights)
+        return trainer.EpochResult(v.loss, {
+            "train_loss": train_loss, "train_matched_iou": train_iou, "val_loss": v.loss,
+            "val_matched_iou": v.matched_iou, "val_motion_accuracy": v.motion_accuracy,
+        })  # fmt: skip
+
+    def summary(r: trainer.EpochResult) -> str:
+        m = r.metrics
+        iou = m["val_matched_iou"]
+        return f"train loss {m['train_loss']:.3f}, val loss {r.val_loss:.3f}, val IoU {iou:.3f}"
+
+    return trainer.fit(model, state, cfg.epochs, cfg.patience, run_epoch, on_epoch, summary)
 
 
 def train_epoch(
     model: PartSegmentationNet,
     optimizer: torch.optim.Optimizer,
     data: SegmentationData,
-    cfg: SegmenterFitConfig,
+    cfg: SegmenterTrainConfig,
+    augmentation: AugmentConfig,
+    seed: int,
     epoch: int,
     device: torch.device,
+    weights: LossWeights,
 ) -> tuple[float, float]:
     """One pass over `data` in the order drawn from (seed, epoch); (mean loss, mean
     matched IoU) per cloud."""
-    order = np.random.default_rng([cfg.seed, epoch]).permutation(len(data))
-    generator = torch.Generator().manual_seed(cfg.seed * 100_003 + epoch)
+    order = np.random.default_rng([seed, epoch]).permutation(len(data))
+    generator = torch.Generator().manual_seed(seed * 100_003 + epoch)
     total, iou, seen, last_log = 0.0, 0.0, 0, time.perf_counter()
     for start in range(0, len(order), cfg.batch_size):
         index = np.sort(order[start : start + cfg.batch_size])
         if len(index) < 2:
             continue  # BatchNorm needs two clouds per batch in training mode
         batch = data.batch(index)
-        batch = batch._replace(points=augment(batch.points, cfg.augment, generator))
-        record = train_step(model, optimizer, batch, cfg.loss)
+        batch = batch._replace(points=augment(batch.points, augmentation, generator))
+        record = train_step(model, optimizer, batch, weights)
         total += record.total * len(index)
         iou += record.matched_iou * len(index)
         seen += len(index)
-        if time.perf_counter() - last_log > cfg.log_every_s:
+        if time.perf_counter() - last_log > LOG_EVERY_S:
             log.info(
                 "  epoch %d: %d/%d clouds, loss %.3f", epoch + 1, seen, len(data), total / seen
             )
@@ -273,3 +265,49 @@ def score_segmenter(
 
     mean_accuracy = float(np.mean(accuracy)) if accuracy else math.nan
     return SegmentationScores(m_ap(False), m_ap(True), mean_accuracy, len(data))
+
+
+def training_objects(ds: ScanDataset, data: CloudDataConfig) -> ObjectSplit:
+    """The scan folder's training objects (the first `data.max_train_objects`) split by
+    object into training and validation; InputError when either side is empty."""
+    from artic.artifacts.scan_dataset import split_train_objects
+
+    train_ids = ds.object_ids("train")[: data.max_train_objects]
+    split = split_train_objects(train_ids, data.val_every)
+    if not split.train or not split.val:
+        raise InputError(
+            f"scans: {ds.root} has {len(train_ids)} training objects; with "
+            f"data.val_every={data.val_every} that leaves {len(split.train)} to train "
+            f"on and {len(split.val)} to validate on; scan more objects"
+        )
+    return split
+
+
+def load_clouds(
+    ds: ScanDataset,
+    objects: list[int],
+    data: CloudDataConfig,
+    n_points: int,
+    n_masks: int,
+    seed: int,
+) -> tuple[SegmentationData, int]:
+    """The prepared training clouds of `objects` (kinds and poses per `data`, each
+    downsampled to `n_points`, seeded from (seed, object, pose, noisy)) and the number of
+    clouds skipped for having more parts than `n_masks`."""
+    rows = ds.select("train", data.kinds, objects)
+    if data.max_poses is not None:
+        rows = [r for r in rows if r.pose < data.max_poses]
+    clouds, ids, noisy, skipped = [], [], [], 0
+    for row in rows:
+        cloud = ds.cloud(row)
+        assert cloud.part_id is not None and cloud.motion_type is not None
+        if len(np.unique(cloud.part_id[cloud.part_id >= 0])) > n_masks:
+            skipped += 1
+            continue
+        rng = np.random.default_rng([seed, row.object_id, row.pose, row.kind == "noisy"])
+        clouds.append(prepare_cloud(cloud.points, cloud.part_id, cloud.motion_type, n_points, rng))
+        ids.append(row.object_id)
+        noisy.append(row.kind == "noisy")
+    if not clouds:
+        raise InputError(f"scans: {ds.root} has no usable clouds of objects {objects[:5]}...")
+    return SegmentationData.stack(clouds, ids, noisy), skipped

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple, cast
 
 import numpy as np
@@ -26,28 +25,14 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from artic.hierarchy.config import GraphNetConfig
 from artic.hierarchy.graph import EDGE_FEATURES, NODE_FEATURES
-from artic.hierarchy.types import MOTION_TYPES, GraphLabelling, GraphLabels, PartGraph
+from artic.hierarchy.types import GraphLabels, PartGraph
+from artic.objects.tree import MOTION_TYPES, GraphLabelling
 
 if TYPE_CHECKING:
     from torch_geometric.nn.pool import EdgePooling
     from torch_geometric.nn.pool.edge_pool import UnpoolInfo
-
-
-@dataclass(frozen=True)
-class GraphNetConfig:
-    """Sizes of the labelling network (small: graphs have fewer than ~30 nodes).
-
-    encoder_widths: point-wise MLP widths of the PointNet; the last is the code size.
-    decoder_points: points the autoencoder's decoder emits. hidden: GraphSAGE width.
-    head_hidden: hidden width of the MLP heads. num_layers: convolution + pooling levels.
-    """
-
-    encoder_widths: tuple[int, ...] = (32, 64, 128)
-    decoder_points: int = 128
-    hidden: int = 64
-    head_hidden: int = 64
-    num_layers: int = 3
 
 
 def _mlp(widths: Sequence[int], last_activation: bool = False) -> nn.Sequential:

@@ -12,14 +12,14 @@ divided by the object's radius, so the features do not depend on the object's si
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from artic.errors import InputError
-from artic.hierarchy.types import GraphLabels, KinematicTree, PartGraph
+from artic.hierarchy.config import PartGraphConfig
+from artic.hierarchy.types import GraphLabels, PartGraph
+from artic.objects.tree import KinematicTree
 
 EDGE_FEATURES = (
     "min_distance",
@@ -46,17 +46,6 @@ NODE_FEATURES = (
     "extent_z",
     "fraction",
 )
-
-
-@dataclass(frozen=True)
-class PartGraphConfig:
-    """contact_threshold: metres; two parts closer than this share a candidate edge (the
-    default is train-hierarchy's: 0.02 m leaves ~11% of storage-furniture tree edges out
-    of the graph, 0.05 m ~0.3%). points_per_node: K, the points each part is resampled to
-    for the node encoder."""
-
-    contact_threshold: float = 0.05
-    points_per_node: int = 128
 
 
 def reverse_edge_features(features: NDArray[np.float32]) -> NDArray[np.float32]:

@@ -38,7 +38,8 @@ from artic.hierarchy.segmentation import (
     segment,
 )
 from artic.hierarchy.tree import extract_tree
-from artic.hierarchy.types import GraphLabelling, KinematicTree, PartGraph
+from artic.hierarchy.types import PartGraph
+from artic.objects.tree import GraphLabelling, KinematicTree
 
 #: clouds above this many points are subsampled before segmentation (see the module doc)
 MAX_POINTS = 200_000

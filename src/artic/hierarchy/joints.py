@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from artic.hierarchy.graph import check_segmented_cloud
-from artic.hierarchy.types import JointAxis, KinematicTree
+from artic.objects.tree import JointAxis, KinematicTree
 
 Array = NDArray[np.float64]
 

@@ -96,7 +96,7 @@ def save_segmenter(
     """Write `model` (weights moved to the CPU) as a "part-segmenter" model file."""
     hparams = {
         "segmentation": segmentation_config_to_dict(model.config),
-        "inference": asdict(inference_cfg),
+        "inference": inference_cfg.model_dump(),
     }
     state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
     save_model_file(path, SEGMENTER_KIND, category, hparams, state, meta)
@@ -129,7 +129,7 @@ def save_labeller(
     meta: dict[str, Any],
 ) -> None:
     """Write `model` (weights moved to the CPU) as a "hierarchy-gnn" model file."""
-    hparams = {"network": asdict(model.cfg), "graph": asdict(graph_cfg)}
+    hparams = {"network": model.cfg.model_dump(), "graph": graph_cfg.model_dump()}
     state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
     save_model_file(path, LABELLER_KIND, category, hparams, state, meta)
 

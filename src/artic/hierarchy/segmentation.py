@@ -32,9 +32,10 @@ from scipy.spatial import cKDTree
 from torch import Tensor, nn
 
 from artic.errors import InputError
+from artic.hierarchy.config import InferenceConfig
 from artic.hierarchy.pointnet2 import PointNet2, PointNet2Config, SharedMLP, farthest_point_indices
+from artic.objects.tree import MOTION_TYPES
 
-MOTION_TYPES = ("static", "rotating", "translating", "both")
 N_MASKS = 24
 
 
@@ -237,16 +238,6 @@ def train_step(
     losses.total.backward()
     optimizer.step()
     return TrainRecord(*(float(v.detach()) for v in losses))
-
-
-@dataclass(frozen=True)
-class InferenceConfig:
-    """How `segment` turns the network's masks into parts."""
-
-    n_points: int = 2048  # network input size; larger clouds are downsampled by FPS
-    min_points: int = 8  # a mask with fewer (sampled) points is merged into its neighbours
-    min_fraction: float = 0.005  # ... or with fewer than this fraction of the sampled points
-    min_confidence: float = 0.1  # a mask with a lower predicted IoU is merged likewise
 
 
 class SegmentationResult(NamedTuple):

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from artic.hierarchy.types import JOINT_TYPE_OF_MOTION, GraphLabelling, KinematicTree
+from artic.objects.tree import JOINT_TYPE_OF_MOTION, GraphLabelling, KinematicTree
 
 FALLBACK_COST = 1.0e3
 _EPS = 1e-9

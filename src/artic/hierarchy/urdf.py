@@ -25,8 +25,8 @@ from numpy.typing import NDArray
 
 from artic.geometry.transforms import make_transform
 from artic.hierarchy.graph import check_segmented_cloud
-from artic.hierarchy.types import KinematicTree
 from artic.objects.model import ArticulatedObject, Inertial, Joint, Link, TriangleMesh
+from artic.objects.tree import KinematicTree
 from artic.objects.urdf import UrdfFiles, write_urdf
 
 Array = NDArray[np.float64]

@@ -25,7 +25,7 @@ from artic.evaluation.kinematics import wrap_angle
 from artic.geometry.camera import CameraIntrinsics
 from artic.geometry.transforms import make_transform
 from artic.objects.categories import build
-from artic.objects.labels import image_labels, label_columns
+from artic.objects.labels import image_labels, joint_column, joint_vector, label_columns
 from artic.objects.spec import ObjectSpec, Pose
 
 NN_SIZE = 32
@@ -79,7 +79,7 @@ class IcpBaseline:
         mean = train_labels.mean(axis=0)
         dims = {k: float(mean[col[k]]) for k in ("depth", "width", "height")}
         xyz = {k: float(mean[col[f"pose_{k}"]]) for k in ("x", "y", "z")}
-        q = np.array([mean[col[f"j{j}_q"]] for j in range(template.dof)])
+        q = np.array([mean[col[joint_column(j, "q")]] for j in range(template.dof)])
         yaws = train_labels[:, col["pose_yaw"]]
         renderer = RaycastBackend(camera)
         self.columns = columns
@@ -157,9 +157,9 @@ def relabel_rigid(
     turn = np.arctan2(rotation[1, 0], rotation[0, 0])
     out[col["pose_yaw"]] = float(wrap_angle(np.array(labels[col["pose_yaw"]] + turn)))
     j = 0
-    while f"j{j}_origin_x" in col:
-        o = [col[f"j{j}_origin_{a}"] for a in "xyz"]
-        d = [col[f"j{j}_direction_{a}"] for a in "xyz"]
+    while joint_column(j, "origin_x") in col:
+        o = [col[c] for c in joint_vector(j, "origin")]
+        d = [col[c] for c in joint_vector(j, "direction")]
         out[o] = rotation @ labels[o] + translation
         out[d] = rotation @ labels[d]
         j += 1

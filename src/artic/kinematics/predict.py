@@ -15,6 +15,7 @@ Estimators (`ESTIMATORS`):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,9 +25,11 @@ from numpy.typing import NDArray
 from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics import Estimator
+from artic.kinematics.config import MDN_KIND, MdnModelMeta
 from artic.kinematics.mdn import KinematicsMDN, Mixture, densest, most_likely, sample
 from artic.kinematics.preprocess import InputPipeline
 from artic.kinematics.targets import TargetCodec
+from artic.objects.labels import joint_column, joint_vector
 
 
 @dataclass(frozen=True)
@@ -39,9 +42,25 @@ class Predictor:
     joint_type: str
 
     @classmethod
-    def from_payload(cls, payload: dict[str, Any]) -> Predictor:
+    def load(cls, path: Path, category: str | None = None) -> Predictor:
+        """From a `train-mdn` model file (of `category` when given); InputError naming the
+        file when it is of another kind, category or format."""
+        from artic.artifacts.model_file import load_model_file
+
+        return cls.from_payload(load_model_file(path, MDN_KIND, category), path)
+
+    @classmethod
+    def from_payload(cls, payload: dict[str, Any], path: Path | None = None) -> Predictor:
         """From `artifacts.model_file.load_model_file(..., kind="kinematics-mdn")`."""
-        meta = payload["meta"]
+        from pydantic import ValidationError
+
+        try:
+            meta = MdnModelMeta.model_validate(payload["meta"])
+        except ValidationError as err:
+            where = ".".join(str(p) for p in err.errors()[0]["loc"])
+            raise InputError(
+                f"{path or 'MDN'}: model meta {where}: {err.errors()[0]['msg']}"
+            ) from None
         if "input_size" not in payload["hparams"]:
             raise InputError(
                 f"MDN of {payload['category']} from artic {payload.get('artic_version')} reads "
@@ -54,10 +73,10 @@ class Predictor:
         return cls(
             payload["category"],
             model,
-            TargetCodec.from_dict(meta["codec"]),
-            CameraIntrinsics.model_validate(meta["camera"]),
-            int(meta["dof"]),
-            str(meta["joint_type"]),
+            TargetCodec.from_dict(meta.codec),
+            meta.camera,
+            meta.dof,
+            meta.joint_type,
         )
 
     @property
@@ -101,7 +120,7 @@ class Predictor:
         return label
 
     def _origin(self, joint: int) -> list[int]:
-        return [self.codec.columns.index(f"j{joint}_origin_{a}") for a in "xyz"]
+        return [self.codec.columns.index(c) for c in joint_vector(joint, "origin")]
 
     def _max_point(
         self, mix: Mixture, joint: int, points: NDArray[np.float64]
@@ -134,14 +153,14 @@ class Predictor:
         unit = "rad" if self.joint_type == "revolute" else "m"
         joints = []
         for j in range(self.dof):
-            direction = np.array([label[col[f"j{j}_direction_{a}"]] for a in "xyz"])
+            direction = np.array([label[col[c]] for c in joint_vector(j, "direction")])
             joints.append({
                 "type": self.joint_type,
-                "origin": [label[col[f"j{j}_origin_{a}"]] for a in "xyz"],
+                "origin": [label[col[c]] for c in joint_vector(j, "origin")],
                 "direction": (direction / max(np.linalg.norm(direction), 1e-12)).tolist(),
-                "configuration": label[col[f"j{j}_q"]],
+                "configuration": label[col[joint_column(j, "q")]],
                 "configuration_unit": unit,
-                "part_origin_in_axis_frame": [label[col[f"j{j}_part_{a}"]] for a in "xyz"],
+                "part_origin_in_axis_frame": [label[col[c]] for c in joint_vector(j, "part")],
             })  # fmt: skip
         out: dict[str, Any] = {
             "category": self.category,

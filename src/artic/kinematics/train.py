@@ -17,37 +17,25 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import torch
 
+from artic.kinematics.config import MdnTrainConfig
 from artic.kinematics.data import DepthSplit
 from artic.kinematics.mdn import KinematicsMDN, mdn_nll
 from artic.kinematics.preprocess import InputPipeline, augment
 from artic.kinematics.targets import TargetCodec
+from artic.learning import trainer
 from artic.learning.fit_state import FitState
 
 log = logging.getLogger("artic")
 
-
-@dataclass(frozen=True)
-class FitConfig:
-    epochs: int
-    batch_size: int
-    lr: float
-    weight_decay: float
-    patience: int
-    augment_dropout: float
-    seed: int
-    channels_last: bool = True
-    log_every_s: float = 30.0
-    schedule: Literal["constant", "cosine"] = "cosine"  # as conf/train_mdn (train.schedule)
-    min_lr_ratio: float = 0.01
+#: seconds between progress lines within an epoch
+LOG_EVERY_S = 30.0
 
 
-def learning_rate(cfg: FitConfig, progress: float) -> float:
+def learning_rate(cfg: MdnTrainConfig, progress: float) -> float:
     """The learning rate after `progress` epochs (fractional: epoch + step/steps)."""
     if cfg.schedule == "constant":
         return cfg.lr
@@ -63,36 +51,29 @@ def fit(
     val: DepthSplit,
     codec: TargetCodec,
     inputs: InputPipeline,
-    cfg: FitConfig,
+    cfg: MdnTrainConfig,
+    seed: int,
     state: FitState,
     device: torch.device,
     on_epoch: Callable[[FitState], None],
 ) -> FitState:
-    """Train from `state` until `cfg.epochs` or early stopping; `on_epoch(state)` after
-    each epoch (state.epoch = epochs done)."""
+    """Train from `state` until `cfg.epochs` or early stopping (`learning.trainer.fit`);
+    `on_epoch(state)` after each epoch (state.epoch = epochs done)."""
     model.to(device)
     if cfg.channels_last:
         model.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
     y_train = torch.from_numpy(codec.encode(train.labels))
-    while state.epoch < cfg.epochs and not state.stopped_early:
-        t0 = time.perf_counter()
-        train_nll = _train_epoch(model, optimizer, train, y_train, inputs, cfg, state.epoch, device)
+
+    def run_epoch(epoch: int) -> trainer.EpochResult:
+        train_nll = _train_epoch(model, optimizer, train, y_train, inputs, cfg, seed, epoch, device)
         val_nll = evaluate_nll(model, val, codec, inputs, cfg.batch_size, device, cfg.channels_last)
-        state.end_epoch(val_nll, model, cfg.patience)
-        seconds = time.perf_counter() - t0
         lr = float(optimizer.param_groups[0]["lr"])
-        state.history.append(
-            {"epoch": state.epoch, "train_nll": train_nll, "val_nll": val_nll,
-             "seconds": seconds, "lr": lr}
-        )  # fmt: skip
-        remaining = cfg.epochs - state.epoch
-        log.info(
-            "epoch %d/%d: train NLL %.3f, val NLL %.3f (best %.3f at %d), %.0f s, ETA %s",
-            state.epoch, cfg.epochs, train_nll, val_nll, state.best_val, state.best_epoch,
-            seconds, "early stop" if state.stopped_early else f"{remaining * seconds:.0f} s",
-        )  # fmt: skip
-        on_epoch(state)
-    return state
+        return trainer.EpochResult(val_nll, {"train_nll": train_nll, "val_nll": val_nll, "lr": lr})
+
+    def summary(r: trainer.EpochResult) -> str:
+        return f"train NLL {r.metrics['train_nll']:.3f}, val NLL {r.val_loss:.3f}"
+
+    return trainer.fit(model, state, cfg.epochs, cfg.patience, run_epoch, on_epoch, summary)
 
 
 def _train_epoch(
@@ -101,13 +82,14 @@ def _train_epoch(
     data: DepthSplit,
     targets: torch.Tensor,
     inputs: InputPipeline,
-    cfg: FitConfig,
+    cfg: MdnTrainConfig,
+    seed: int,
     epoch: int,
     device: torch.device,
 ) -> float:
     model.train()
-    order = np.random.default_rng([cfg.seed, epoch]).permutation(len(data))
-    generator = torch.Generator(device=device).manual_seed(cfg.seed * 100_003 + epoch)
+    order = np.random.default_rng([seed, epoch]).permutation(len(data))
+    generator = torch.Generator(device=device).manual_seed(seed * 100_003 + epoch)
     total, seen, last_log = 0.0, 0, time.perf_counter()
     for start in range(0, len(order), cfg.batch_size):
         index = np.sort(order[start : start + cfg.batch_size])
@@ -123,7 +105,7 @@ def _train_epoch(
         optimizer.step()
         total += loss.item() * len(index)
         seen += len(index)
-        if time.perf_counter() - last_log > cfg.log_every_s:
+        if time.perf_counter() - last_log > LOG_EVERY_S:
             log.info("  epoch %d: %d/%d images, NLL %.3f", epoch + 1, seen, len(data), total / seen)
             last_log = time.perf_counter()
     return total / max(seen, 1)

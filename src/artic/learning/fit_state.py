@@ -1,5 +1,5 @@
 """Epoch bookkeeping of supervised training with early stopping, shared by the Chapter 3
-MDN, the Chapter 4 segmenter and the Chapter 4 graph network.
+MDN, the Chapter 4 segmenter and the Chapter 4 graph network (`trainer.fit` runs it).
 
 `FitState` is everything a resumed run needs (it is saved in each epoch's checkpoint):
 epochs done, the best validation loss and its epoch, epochs since the last improvement,

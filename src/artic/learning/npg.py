@@ -31,26 +31,27 @@ from typing import Any, Literal
 import numpy as np
 import torch
 from numpy.typing import NDArray
+from pydantic import Field
 from torch import nn
 
+from artic.config.schemas import Strict
 from artic.learning.rollout import Trajectory
 from artic.policies.gaussian_mlp import GaussianMLPPolicy
 
 
-@dataclass(frozen=True)
-class NPGConfig:
+class NPGConfig(Strict):
     """NPG / DAPG hyper-parameters (defaults as the DAPG paper where it gives them)."""
 
-    step_size: float = 0.05  # delta, normalised step size (KL budget)
-    gamma: float = 0.995  # discount
-    gae_lambda: float = 0.97  # GAE lambda; 1.0 = Monte-Carlo returns
-    cg_iters: int = 10
-    cg_damping: float = 1e-4
-    baseline: Literal["linear", "mlp"] = "linear"
-    baseline_reg: float = 1e-5  # ridge coefficient of the linear baseline
-    baseline_epochs: int = 20  # Adam epochs of the MLP baseline per update
-    dapg_lambda0: float = 0.1  # lambda_0 of DAPG (0 = plain NPG)
-    dapg_lambda1: float = 0.95  # lambda_1, the per-update decay of the demo weight
+    step_size: float = Field(0.05, gt=0, description="normalised step size delta (KL budget)")
+    gamma: float = Field(0.995, gt=0, le=1, description="discount")
+    gae_lambda: float = Field(0.97, ge=0, le=1, description="GAE lambda (1: Monte-Carlo)")
+    cg_iters: int = Field(10, gt=0, description="conjugate-gradient steps for F^-1 g")
+    cg_damping: float = Field(1e-4, ge=0, description="damping added to F v")
+    baseline: Literal["linear", "mlp"] = Field("linear", description="value baseline")
+    baseline_reg: float = Field(1e-5, ge=0, description="ridge coefficient, linear baseline")
+    baseline_epochs: int = Field(20, gt=0, description="Adam epochs per update, mlp baseline")
+    dapg_lambda0: float = Field(0.1, ge=0, description="DAPG demo weight lambda_0 (0: NPG)")
+    dapg_lambda1: float = Field(0.95, gt=0, le=1, description="its decay lambda_1 per update")
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     import gymnasium as gym
     import torch
 
-    from artic.policies.dmp import DMPConfig, DMPController, DMPParams
+    from artic.control.tracking import JointTracker
+    from artic.policies.dmp import DMPConfig, DMPParams
     from artic.policies.gaussian_mlp import GaussianMLPPolicy
 
 #: (observation (obs_dim,), step index) -> action (act_dim,)
@@ -138,15 +139,16 @@ def normalised_return(returns: NDArray[np.float64], idle: NDArray[np.float64]) -
     return 1.0 - float(np.mean(returns)) / ref
 
 
-def dmp_actor(
-    params: DMPParams, cfg: DMPConfig, dt: float, steps: int, k_p: float
-) -> DMPController:
+def dmp_actor(params: DMPParams, cfg: DMPConfig, dt: float, steps: int, k_p: float) -> JointTracker:
     """The `ActionFn` of a DMP policy: the DMP is integrated open-loop in time over
     `steps` control periods of `dt` s (Eq. 2.4-2.6), and the action at step k tracks it
-    with feedback on the measured joints, a_k = yd_k + k_p (y_k - q_R) (`DMPController`)."""
-    from artic.policies.dmp import DMPController
+    with feedback on the measured joints, a_k = yd_k + k_p (y_k - q_R)
+    (`artic.control.tracking.JointTracker`)."""
+    from artic.control.tracking import JointTracker
+    from artic.policies.dmp import rollout_dmp
 
-    return DMPController.from_params(params, cfg, dt, steps, k_p)
+    traj = rollout_dmp(params, cfg, dt, steps)
+    return JointTracker(traj.y, traj.yd, k_p)
 
 
 def dmp_rollouts(

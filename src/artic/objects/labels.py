@@ -81,3 +81,15 @@ def image_labels(
         values += list(part_origin(obj, j))
     columns = label_columns(obj.dof)
     return {name: float(v) for name, v in zip(columns, values, strict=True)}
+
+
+def joint_column(j: int, field: str) -> str:
+    """The label column of joint j's `field` (one of the joint fields: "q", "origin_x",
+    ...): `j<j>_<field>`."""
+    return f"j{j}_{field}"
+
+
+def joint_vector(j: int, name: str) -> list[str]:
+    """The three label columns of joint j's vector `name` ("origin", "direction",
+    "part"): `j<j>_<name>_x`, `_y`, `_z`."""
+    return [f"j{j}_{name}_{a}" for a in "xyz"]

@@ -20,7 +20,8 @@ from numpy.typing import NDArray
 
 from artic.geometry.transforms import axis_angle, make_transform
 
-JointType = Literal["revolute", "prismatic", "fixed", "continuous"]
+UrdfJointType = Literal["revolute", "prismatic", "fixed", "continuous"]
+"""A URDF joint's type; a kinematic tree's edges have `artic.objects.tree.JointType`."""
 
 ROTATING_JOINTS = ("revolute", "continuous")
 """Joint types whose value is an angle (radians)."""
@@ -79,7 +80,7 @@ class Joint:
     """
 
     name: str
-    type: JointType
+    type: UrdfJointType
     parent: str
     child: str
     origin: NDArray[np.float64]

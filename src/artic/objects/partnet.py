@@ -35,7 +35,14 @@ from numpy.typing import NDArray
 
 from artic.errors import InputError
 from artic.geometry.transforms import make_transform
-from artic.objects.model import ArticulatedObject, Inertial, Joint, JointType, Link, TriangleMesh
+from artic.objects.model import (
+    ArticulatedObject,
+    Inertial,
+    Joint,
+    Link,
+    TriangleMesh,
+    UrdfJointType,
+)
 from artic.objects.tree import ObjectTree, object_tree
 
 SPIN_RANGE = (-math.pi, math.pi)
@@ -185,7 +192,7 @@ def _parse_joint(element: ET.Element, source: str) -> Joint:
     dynamics = element.find("dynamics")
     return Joint(
         name=name,
-        type=cast(JointType, kind),
+        type=cast(UrdfJointType, kind),
         parent=str(parent.get("link")),
         child=str(child.get("link")),
         origin=_pose(element.find("origin"), where),

@@ -1,4 +1,13 @@
-"""Per-object kinematic-tree ground truth for Chapter 4, and articulated-pose augmentation.
+"""Kinematic trees (the one record of them), per-object tree ground truth, articulated poses.
+
+A kinematic hierarchy (section 4.4.1) is a directed tree over the parts of an object:
+edge A -> B means part B moves with part A; every part carries a motion type
+(`MOTION_TYPES`: static, rotating, translating, both) and every edge a `JointType` and,
+once estimated, an axis (a point and a unit direction, metres, object frame).
+`KinematicTree` is that record (a frozen dataclass, round-trips through JSON) and
+`GraphLabelling` the Chapter 4 network's probabilities over one; every package reads
+trees from here (the ground floor of the records: this module imports only
+`artic.errors` and `artic.objects.model`).
 
 `object_tree(obj)` turns an `ArticulatedObject` into an `ObjectTree`: the parts (link
 index = part id, 0 = the root), the directed edges parent -> child (one per URDF joint,
@@ -7,35 +16,230 @@ and axis (a point and a unit direction in the world frame, i.e. with `base_pose`
 applied, at configuration zero), and per part the motion type of section 4.3 (0 static,
 1 rotating, 2 translating, 3 both): a part's motion type is that of the joint to its
 parent, the root is static. `generate-dataset dataset=hierarchy` writes it as
-`objects/<id>/tree.json`; its keys are a superset of
-`artic.hierarchy.types.KinematicTree.to_dict()`, so `KinematicTree.from_dict` reads it.
+`objects/<id>/tree.json`; its keys are a superset of `KinematicTree.to_dict()`, so
+`KinematicTree.from_dict` reads it, and `ObjectTree.to_kinematic_tree()` gives it.
 
 `sample_configurations(obj, count, rng)` draws the articulated poses of section 4.5
 ("uniformly sampling articulated poses within each part's ground truth range of
-motion", 18 per object), written as `objects/<id>/poses.json` (`ArticulatedPoses`).
-Pure: nothing here reads or writes files.
+motion", 18 per object), written as `objects/<id>/poses.json` (`ArticulatedPoses`);
+`latin_hypercube(rng, n, limits)` those render-depth draws (one per stratum of each
+joint's range). Pure: nothing here reads or writes files.
 """
 
 from __future__ import annotations
 
+import json
 import math
-from typing import TYPE_CHECKING, Literal
+from dataclasses import dataclass
+from typing import Any, Literal, cast, get_args
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from artic.objects.model import ROTATING_JOINTS, ArticulatedObject, JointType
-
-if TYPE_CHECKING:
-    from artic.hierarchy.types import KinematicTree
-
-MOTION_TYPES = ("static", "rotating", "translating", "both")
-"""Motion type names (section 4.3); the index is the integer label."""
+from artic.errors import InputError
+from artic.objects.model import ROTATING_JOINTS, ArticulatedObject, UrdfJointType
 
 MotionType = Literal["static", "rotating", "translating", "both"]
-TreeJointType = Literal["fixed", "revolute", "prismatic"]
+MOTION_TYPES: tuple[MotionType, ...] = get_args(MotionType)
+"""Motion type names of a part (section 4.3); the index is the integer label."""
+
+JointType = Literal["fixed", "revolute", "prismatic"]
+"""Joint type of a tree edge (a URDF joint's `continuous` is `revolute` here)."""
+JOINT_TYPES: tuple[JointType, ...] = get_args(JointType)
+
+JOINT_TYPE_OF_MOTION: dict[int, JointType] = {
+    0: "fixed",
+    1: "revolute",
+    2: "prismatic",
+    3: "revolute",
+}
+"""Joint type of the edge into a part of each motion type. URDF has no screw joint, so
+a part that both rotates and translates (3) gets a revolute joint; its motion type
+stays 3 on the node, so nothing is lost for a consumer that models it otherwise."""
+
 TREE_FORMAT: Literal[1] = 1
+
+
+@dataclass(frozen=True)
+class JointAxis:
+    """A joint axis: origin (3,) a point on the axis and direction (3,) a unit vector,
+    float64, metres, object frame."""
+
+    origin: NDArray[np.float64]
+    direction: NDArray[np.float64]
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {
+            "origin": [float(v) for v in self.origin],
+            "direction": [float(v) for v in self.direction],
+        }
+
+    @staticmethod
+    def from_dict(data: dict[str, Any]) -> JointAxis:
+        origin = np.asarray(data["origin"], dtype=np.float64)
+        direction = np.asarray(data["direction"], dtype=np.float64)
+        if origin.shape != (3,) or direction.shape != (3,):
+            raise ValueError("axis origin and direction must have 3 values each")
+        norm = float(np.linalg.norm(direction))
+        if not np.isfinite(norm) or norm < 1e-9 or not np.all(np.isfinite(origin)):
+            raise ValueError("axis direction must be a finite non-zero vector")
+        return JointAxis(origin=origin, direction=direction / norm)
+
+
+@dataclass(frozen=True)
+class KinematicTree:
+    """A kinematic hierarchy over parts 0..num_parts-1 (section 4.4.1).
+
+    root: the part every other part hangs from. edges: (parent, child) pairs, ordered so
+    that a parent is reached before its children (breadth-first from the root).
+    motion_types: (num_parts,) ints indexing MOTION_TYPES. joint_types: one per edge.
+    axes: one per edge (None while not estimated, e.g. before `joints.estimate_axes`).
+    Constructing an invalid tree raises ValueError.
+    """
+
+    num_parts: int
+    root: int
+    edges: tuple[tuple[int, int], ...]
+    motion_types: tuple[int, ...]
+    joint_types: tuple[JointType, ...]
+    axes: tuple[JointAxis | None, ...] | None = None
+
+    def __post_init__(self) -> None:
+        p = self.num_parts
+        if p < 1:
+            raise ValueError(f"num_parts must be >= 1, got {p}")
+        if not 0 <= self.root < p:
+            raise ValueError(f"root {self.root} is not a part of 0..{p - 1}")
+        if len(self.motion_types) != p:
+            raise ValueError(f"motion_types has {len(self.motion_types)} entries, expected {p}")
+        if any(not 0 <= m < len(MOTION_TYPES) for m in self.motion_types):
+            raise ValueError(f"motion_types must be in 0..{len(MOTION_TYPES) - 1}")
+        if len(self.edges) != p - 1:
+            raise ValueError(f"a tree over {p} parts has {p - 1} edges, got {len(self.edges)}")
+        if len(self.joint_types) != len(self.edges):
+            raise ValueError("joint_types must have one entry per edge")
+        if any(t not in JOINT_TYPES for t in self.joint_types):
+            raise ValueError(f"joint_types must be in {JOINT_TYPES}")
+        if self.axes is not None and len(self.axes) != len(self.edges):
+            raise ValueError("axes must have one entry per edge")
+        reached = {self.root}
+        for parent, child in self.edges:
+            if not (0 <= parent < p and 0 <= child < p):
+                raise ValueError(f"edge ({parent}, {child}) names a part outside 0..{p - 1}")
+            if parent not in reached:
+                raise ValueError(f"edge ({parent}, {child}): parent not reached from the root yet")
+            if child in reached:
+                raise ValueError(
+                    f"edge ({parent}, {child}): part {child} has two parents or is the root"
+                )
+            reached.add(child)
+
+    @property
+    def parents(self) -> NDArray[np.int64]:
+        """(num_parts,) parent of each part, -1 for the root."""
+        parent = np.full(self.num_parts, -1, dtype=np.int64)
+        for a, b in self.edges:
+            parent[b] = a
+        return parent
+
+    def children(self, part: int) -> list[int]:
+        return [b for a, b in self.edges if a == part]
+
+    def depth_first_edges(self) -> list[tuple[int, int]]:
+        """The edges in depth-first pre-order from the root, children in `edges` order:
+        the order in which PyBullet numbers the joints of a URDF."""
+        ordered: list[tuple[int, int]] = []
+        stack = [(self.root, k) for k in reversed(self.children(self.root))]
+        while stack:
+            parent, child = stack.pop()
+            ordered.append((parent, child))
+            stack.extend((child, k) for k in reversed(self.children(child)))
+        return ordered
+
+    def edge_index(self, parent: int, child: int) -> int:
+        """Position of the edge (parent, child) in `edges`; KeyError when absent."""
+        for i, edge in enumerate(self.edges):
+            if edge == (parent, child):
+                return i
+        raise KeyError((parent, child))
+
+    def with_axes(self, axes: tuple[JointAxis | None, ...]) -> KinematicTree:
+        return KinematicTree(
+            self.num_parts, self.root, self.edges, self.motion_types, self.joint_types, axes
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "num_parts": self.num_parts,
+            "root": self.root,
+            "edges": [list(e) for e in self.edges],
+            "motion_types": [MOTION_TYPES[m] for m in self.motion_types],
+            "joint_types": list(self.joint_types),
+            "axes": None
+            if self.axes is None
+            else [None if a is None else a.to_dict() for a in self.axes],
+        }
+
+    @staticmethod
+    def from_dict(data: dict[str, Any]) -> KinematicTree:
+        """Inverse of `to_dict`; raises InputError naming the field on malformed data."""
+        try:
+            axes_data = data.get("axes")
+            axes = (
+                None
+                if axes_data is None
+                else tuple(None if a is None else JointAxis.from_dict(a) for a in axes_data)
+            )
+            motion = tuple(
+                MOTION_TYPES.index(m) if isinstance(m, str) else int(m)
+                for m in data["motion_types"]
+            )
+            return KinematicTree(
+                num_parts=int(data["num_parts"]),
+                root=int(data["root"]),
+                edges=tuple((int(a), int(b)) for a, b in data["edges"]),
+                motion_types=motion,
+                joint_types=tuple(cast(JointType, str(t)) for t in data["joint_types"]),
+                axes=axes,
+            )
+        except KeyError as error:
+            raise InputError(f"kinematic tree: missing field {error}") from None
+        except (ValueError, TypeError) as error:
+            raise InputError(f"kinematic tree: {error}") from None
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+    @staticmethod
+    def from_json(text: str) -> KinematicTree:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as error:
+            raise InputError(f"kinematic tree: not valid JSON ({error.msg})") from None
+        if not isinstance(data, dict):
+            raise InputError("kinematic tree: expected a JSON object")
+        return KinematicTree.from_dict(data)
+
+
+@dataclass(frozen=True)
+class GraphLabelling:
+    """The network's probabilities on one part graph (section 4.4.2).
+
+    edges: (E, 2) int64, the candidate edges. motion: (P, 4) float64, motion-type
+    probabilities. exists: (E,) p(edge exists). parent_first: (E,) p(edges[e, 0] is the
+    parent | edge exists). root: (P,) p(part is the root), sums to one.
+    """
+
+    edges: NDArray[np.int64]
+    motion: NDArray[np.float64]
+    exists: NDArray[np.float64]
+    parent_first: NDArray[np.float64]
+    root: NDArray[np.float64]
+
+    @property
+    def num_parts(self) -> int:
+        return int(self.motion.shape[0])
 
 
 def motion_type_of(joint_type: str) -> int:
@@ -74,8 +278,8 @@ class ObjectTree(_Frozen):
     parts: tuple[PartInfo, ...] = Field(description="per part, in link order")
     edges: tuple[tuple[int, int], ...] = Field(description="(parent, child) per joint")
     joint_names: tuple[str, ...] = Field(description="URDF joint name per edge")
-    joint_types: tuple[TreeJointType, ...] = Field(description="per edge; continuous -> revolute")
-    urdf_joint_types: tuple[JointType, ...] = Field(description="per edge, as in the URDF")
+    joint_types: tuple[JointType, ...] = Field(description="per edge; continuous -> revolute")
+    urdf_joint_types: tuple[UrdfJointType, ...] = Field(description="per edge, as in the URDF")
     limits: tuple[tuple[float, float], ...] = Field(description="per edge (lower, upper)")
     axes: tuple[AxisRecord | None, ...] = Field(description="per edge; None for fixed joints")
     motion_types: tuple[MotionType, ...] = Field(description="per part")
@@ -127,9 +331,7 @@ class ObjectTree(_Frozen):
         return np.asarray(self.motion_type_ids, dtype=np.int64)
 
     def to_kinematic_tree(self) -> KinematicTree:
-        """The same tree as the Chapter 4 library's record (axes included)."""
-        from artic.hierarchy.types import JointAxis, KinematicTree
-
+        """The same tree as a `KinematicTree` (axes included)."""
         axes = tuple(
             None if a is None else JointAxis(np.array(a.origin), np.array(a.direction))
             for a in self.axes
@@ -234,3 +436,14 @@ def sample_configurations(
         joint_names=tuple(j.name for j in joints),
         configurations=tuple(_clean(row) for row in values),
     )
+
+
+def latin_hypercube(
+    rng: np.random.Generator, n: int, limits: list[tuple[float, float]]
+) -> NDArray[np.float64]:
+    """(n, dof) configurations, one per stratum of each joint's range, strata paired at
+    random across joints (Latin hypercube)."""
+    lo = np.array([a for a, _ in limits])
+    hi = np.array([b for _, b in limits])
+    u = np.stack([(rng.permutation(n) + rng.random(n)) / n for _ in limits], axis=1)
+    return lo + u * (hi - lo)

@@ -25,7 +25,9 @@ solution of Eq. 2.6. The DMP starts at rest (z = 0) at y0.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Self
 
 import numpy as np
@@ -35,6 +37,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from artic.errors import InputError
 
 F64 = NDArray[np.float64]
+DMP_JSON = "dmp.json"  # the DMPs of a fit-dmp folder, and each seed's final PI^2-CMA policy
 
 
 class DMPConfig(BaseModel):
@@ -333,43 +336,6 @@ def rollout_dmp(params: DMPParams, cfg: DMPConfig, dt: float, steps: int) -> DMP
 
 
 @dataclass(frozen=True)
-class DMPController:
-    """Joint-velocity actions that track a DMP rollout, for envs whose action is q'.
-
-    At control step k: a_k = yd_k + k_p (y_k - q_robot) (velocity feed-forward plus a
-    proportional correction, k_p in 1/s; k_p dt <= 1 avoids overshoot). After the
-    rollout's last sample, the target is held (y = y_last, yd = 0). Callable as a
-    rollout `ActionFn`: `controller(obs, k)` reads q_robot from obs[:J].
-    """
-
-    trajectory: DMPTrajectory
-    k_p: float = 5.0
-
-    def __post_init__(self) -> None:
-        if not (np.isfinite(self.k_p) and self.k_p >= 0):
-            raise InputError(f"DMPController.k_p: expected >= 0, got {self.k_p}")
-
-    @classmethod
-    def from_params(
-        cls, params: DMPParams, cfg: DMPConfig, dt: float, steps: int, k_p: float = 5.0
-    ) -> DMPController:
-        return cls(rollout_dmp(params, cfg, dt, steps), k_p)
-
-    def action(self, k: int, q_robot: F64) -> F64:
-        """a_k: (J,) rad/s for robot configuration q_robot (J,) rad."""
-        traj = self.trajectory
-        n = traj.y.shape[0]
-        y, yd = (traj.y[k], traj.yd[k]) if k < n else (traj.y[-1], np.zeros_like(traj.y[-1]))
-        q = np.asarray(q_robot, dtype=np.float64)
-        if q.shape != y.shape:
-            raise InputError(f"DMPController: q_robot must have shape {y.shape}, got {q.shape}")
-        return yd + self.k_p * (y - q)
-
-    def __call__(self, obs: F64, step: int) -> F64:
-        return self.action(step, np.asarray(obs, dtype=np.float64)[: self.trajectory.y.shape[1]])
-
-
-@dataclass(frozen=True)
 class DMPFile:
     """What a fit-dmp `dmp.json` holds: the task, the control period dt (s) the DMPs were
     fitted at, the gains and basis (`cfg`) and the parameters of every joint."""
@@ -399,3 +365,19 @@ class DMPFile:
         if not dt > 0:
             raise InputError(f"dmp.json: dt must be positive, got {dt}")
         return cls(task, dt, params, cfg)
+
+
+def read_dmp(folder: Path) -> DMPFile:
+    """The DMPs of a fit-dmp output folder (checked against its manifest)."""
+    from artic.artifacts.manifest import read_manifest, verify_file
+
+    manifest = read_manifest(folder, expected_stage="fit-dmp")
+    path = verify_file(folder, manifest, DMP_JSON)
+    try:
+        data = json.loads(path.read_text())
+    except ValueError as err:
+        raise InputError(f"{path}: not JSON ({err})") from None
+    try:
+        return DMPFile.from_json_dict(data)
+    except InputError as err:
+        raise InputError(f"{path}: {err}") from None

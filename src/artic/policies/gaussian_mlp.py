@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 
 import torch
+from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
 
@@ -125,14 +126,18 @@ def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, x: torch.Tensor
     return -0.5 * (z**2).sum(-1) - log_std.sum() - 0.5 * mean.shape[-1] * math.log(2 * math.pi)
 
 
-@dataclass(frozen=True)
-class BCConfig:
-    """Behaviour cloning by maximum likelihood (section 5.2.1)."""
+class BCConfig(BaseModel):
+    """Behaviour cloning by maximum likelihood (section 5.2.1). In a stage config the
+    fields are `bc_epochs`, `bc_batch_size`, `bc_lr` (policy-search's `mlp_policy`)."""
 
-    epochs: int = 10
-    batch_size: int = 64
-    lr: float = 1e-3
-    normalise_obs: bool = True
+    model_config = ConfigDict(
+        frozen=True, extra="forbid", validate_by_name=True, validate_by_alias=True
+    )
+
+    epochs: int = Field(10, ge=0, alias="bc_epochs", description="epochs (thesis: 10)")
+    batch_size: int = Field(64, gt=0, alias="bc_batch_size", description="minibatch size")
+    lr: float = Field(1e-3, gt=0, alias="bc_lr", description="Adam learning rate")
+    normalise_obs: bool = Field(True, description="standardise inputs with the demo states")
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ body's bottom face, z up, front facing -x) with a part id and a motion type per 
 
 Part ids are link indices (0 = the root body); a handle is its own part, as in PartNet
 and PartNet-Mobility. A part's motion type is the type of the joint to its parent
-(`MOTION_TYPES` of `artic.hierarchy.types`: 0 static, 1 rotating, 2 translating,
+(`MOTION_TYPES` of `artic.objects.tree`: 0 static, 1 rotating, 2 translating,
 3 both), so a handle on its fixed joint is static (it moves only through its parent,
 which the tree edge records). Pure functions: no file access; randomness from the
 `np.random.Generator` passed in.
@@ -30,8 +30,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from artic.geometry.camera import CameraIntrinsics
 from artic.geometry.transforms import invert, transform_points
-from artic.hierarchy.types import JOINT_TYPE_OF_MOTION, JointAxis, JointType, KinematicTree
 from artic.objects.model import ArticulatedObject
+from artic.objects.tree import JOINT_TYPE_OF_MOTION, JointAxis, JointType, KinematicTree
 from artic.render.backend import DepthBackend
 from artic.render.noise import SensorNoiseConfig, apply_sensor_noise
 

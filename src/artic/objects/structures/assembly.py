@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from artic.geometry.transforms import make_transform
-from artic.objects.model import ArticulatedObject, Joint, JointType, Link
+from artic.objects.model import ArticulatedObject, Joint, Link, UrdfJointType
 from artic.objects.parts import Box, MovingPart, handle_boxes, mass_properties, union_mesh
 from artic.objects.spec import PartsConfig
 
@@ -37,7 +37,7 @@ class PartNode(NamedTuple):
     boxes: tuple[Box, ...]
     density: float
     parent: int = -1
-    joint_type: JointType = "fixed"
+    joint_type: UrdfJointType = "fixed"
     origin: NDArray[np.float64] = np.zeros(3)
     axis: NDArray[np.float64] = np.array([0.0, 0.0, 1.0])
     limits: tuple[float, float] = (0.0, 0.0)

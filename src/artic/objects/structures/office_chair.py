@@ -14,7 +14,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from artic.objects.model import ArticulatedObject, JointType
+from artic.objects.model import ArticulatedObject, UrdfJointType
 from artic.objects.parts import Box
 from artic.objects.spec import Range
 from artic.objects.structures.assembly import PartNode, assemble_tree
@@ -224,7 +224,7 @@ def _feet_nodes(spec: OfficeChairSpec, z0: float) -> list[PartNode]:
     return nodes
 
 
-def _joint(movable: bool, kind: JointType) -> JointType:
+def _joint(movable: bool, kind: UrdfJointType) -> UrdfJointType:
     return kind if movable else "fixed"
 
 

@@ -1,0 +1,158 @@
+"""Chapter 4's configs, validated straight from the Hydra config of `train-segmenter`,
+`train-hierarchy` and `evaluate hierarchy` (conf/<stage>/config.yaml holds each value,
+these models its type, range and meaning). `InferenceConfig` and `PartGraphConfig` are
+also stored in the model files and used at inference; `GraphNetConfig` is the labelling
+network's architecture. The networks' modules re-export them (`segmentation`, `graph`,
+`gnn`).
+
+No torch here: a config validates without loading the numerical libraries.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Literal
+
+from pydantic import Field
+
+from artic.config.schemas import Strict
+from artic.learning.trainer import TrainConfig
+
+if TYPE_CHECKING:
+    from artic.hierarchy.segmentation import SegmentationConfig
+
+
+class CategoryName(Strict):
+    """The category config group (conf/common/category); only its name is needed."""
+
+    model_config = Strict.model_config | {"extra": "ignore"}
+    name: str
+
+
+# --- the part segmenter (section 4.3) ---------------------------------------------------
+
+
+class SegmenterModelConfig(Strict):
+    """`model:` the PointNet++ SSG backbone of PartNet, optionally narrower/lighter."""
+
+    width: float = Field(1.0, gt=0, description="every layer width times this")
+    n_masks: int = Field(24, gt=0, description="N instance masks (section 4.3: 24)")
+    norm: Literal["batch", "layer"] = Field("batch", description="normalisation in the MLPs")
+    centroids: tuple[int, int] = Field((512, 128), description="FPS centroids, levels 1 and 2")
+    neighbours: tuple[int, int] = Field((32, 64), description="ball query size, levels 1 and 2")
+    radii: tuple[float, float] = Field((0.2, 0.4), description="ball radii (unit-sphere units)")
+
+    def network(self) -> SegmentationConfig:
+        """The architecture these settings describe."""
+        import dataclasses
+
+        from artic.hierarchy.segmentation import SegmentationConfig
+
+        base = SegmentationConfig(n_masks=self.n_masks).scaled(self.width)
+        levels = list(base.backbone.set_abstractions)
+        for i in range(2):
+            levels[i] = dataclasses.replace(
+                levels[i],
+                n_centroids=self.centroids[i],
+                n_neighbours=self.neighbours[i],
+                radius=self.radii[i],
+            )
+        backbone = dataclasses.replace(
+            base.backbone, set_abstractions=tuple(levels), norm=self.norm
+        )
+        return dataclasses.replace(base, backbone=backbone)
+
+
+class InferenceConfig(Strict):
+    """`inference:` how `segment` turns the network's masks into parts; saved with the
+    model (the cloud must be downsampled to the size it was trained with)."""
+
+    n_points: int = Field(2048, gt=1, description="network input size (FPS downsampling)")
+    min_points: int = Field(8, ge=0, description="smaller masks are merged away")
+    min_fraction: float = Field(0.005, ge=0, lt=1, description="... or smaller than this fraction")
+    min_confidence: float = Field(0.1, ge=0, le=1, description="... or less confident")
+
+
+class CloudDataConfig(Strict):
+    """`data:` which training clouds; every `val_every`-th training object validates."""
+
+    kinds: tuple[Literal["clean", "noisy"], ...] = Field(
+        ("clean", "noisy"), min_length=1, description="which clouds to train on"
+    )
+    val_every: int = Field(10, ge=2, description="every Nth training object validates")
+    max_train_objects: int | None = Field(None, gt=0, description="first N training objects")
+    max_poses: int | None = Field(None, gt=0, description="first N poses per object")
+
+
+class AugmentConfig(Strict):
+    """`augment:` of the segmenter's training clouds."""
+
+    rotate_z_deg: float = Field(0.0, ge=0, le=180, description="random rotation about z, +-deg")
+    jitter_m: float = Field(0.0, ge=0, description="per-point Gaussian noise std, metres")
+
+
+class SegmenterTrainConfig(TrainConfig):
+    """`train:` Adam on the instance + motion-type loss (`fit_segmenter`)."""
+
+    epochs: int = Field(100, gt=0, description="at most; early stopping usually ends sooner")
+    batch_size: int = Field(8, ge=2, description="clouds per step (BatchNorm needs >= 2)")
+    lr: float = Field(1e-4, gt=0, description="Adam (section 4.3: 1e-4)")
+    patience: int = Field(10, gt=0, description="epochs without a better val loss")
+
+
+# --- the graph labelling network (section 4.4) ------------------------------------------
+
+
+class PartGraphConfig(Strict):
+    """`graph:` part-graph construction (section 4.4.1); saved with the model. The
+    contact threshold's default is train-hierarchy's: 0.02 m leaves ~11% of
+    storage-furniture tree edges out of the graph, 0.05 m ~0.3%."""
+
+    contact_threshold: float = Field(0.05, gt=0, description="metres; closer parts get an edge")
+    points_per_node: int = Field(128, gt=0, description="K, points per part for the PointNet")
+
+
+class GraphNetConfig(Strict):
+    """`model:` sizes of the labelling network (small: graphs have fewer than ~30 nodes)."""
+
+    encoder_widths: tuple[int, ...] = Field(
+        (32, 64, 128), min_length=1, description="PointNet point-wise MLP; the last: code size"
+    )
+    decoder_points: int = Field(128, gt=0, description="points the autoencoder emits")
+    hidden: int = Field(64, gt=0, description="GraphSAGE width")
+    head_hidden: int = Field(64, gt=0, description="hidden width of the MLP heads")
+    num_layers: int = Field(3, gt=0, description="convolution + edge pooling levels (3)")
+
+
+class PretrainConfig(Strict):
+    """`pretrain:` the node encoder as a point autoencoder (Chamfer, Nesterov SGD)."""
+
+    epochs: int = Field(500, ge=0, description="autoencoder epochs (4.4.3: 500; 0: none)")
+    batch_size: int = Field(64, gt=0, description="part point sets per step")
+    lr: float = Field(1e-3, gt=0, description="Nesterov SGD (4.4.3: 1e-3)")
+    momentum: float = Field(0.9, gt=0, lt=1)
+    max_sets: int | None = Field(
+        None, gt=0, description="a seeded subset of at most N part point sets (null: all)"
+    )
+
+
+class LabellerTrainConfig(TrainConfig):
+    """`train:` Adam on the sum of the four cross-entropies (`fit_labeller`)."""
+
+    epochs: int = Field(30, gt=0, description="4.4.3: 30")
+    batch_size: int = Field(16, gt=0, description="graphs per step")
+    lr: float = Field(1e-3, gt=0, description="Adam (4.4.3: 1e-3)")
+    patience: int = Field(10, gt=0, description="epochs without a better val loss")
+
+
+# --- evaluation (Tables 4.1 and 4.2) ----------------------------------------------------
+
+
+class HierarchyEvaluateConfig(Strict):
+    """`evaluate:` of `evaluate hierarchy` (`hierarchy.evaluate.evaluate_scan`)."""
+
+    kinds: tuple[Literal["clean", "noisy"], ...] = Field(("clean", "noisy"), min_length=1)
+    max_objects: int | None = Field(None, gt=0, description="first N test objects (null: all)")
+    max_poses: int | None = Field(None, gt=0, description="first N poses of each (null: all)")
+    iou_threshold: float = Field(0.5, gt=0, le=1, description="mAP true-positive IoU")
+    match_iou: float = Field(0.5, gt=0, le=1, description="predicted-to-true part matching")
+    objects_per_chunk: int = Field(4, gt=0, description="test objects per resumable chunk")
