@@ -8,7 +8,7 @@ from typing import Any
 
 from artic.artifacts.formats import write_json
 from artic.artifacts.manifest import MANIFEST, Manifest, list_outputs, now_iso, outputs_hash
-from artic.cli.stage_runner import config_hash_of
+from artic.artifacts.output import config_hash_of
 
 
 def write_manifest(folder: Path, stage: str, config: dict[str, Any]) -> None:

@@ -615,7 +615,7 @@ def test_internal_error_outside_a_stage_goes_to_a_tmp_log(tmp_path, monkeypatch)
 
 
 def test_internal_error_in_a_stage_goes_to_its_log(tmp_path, monkeypatch):
-    import artic.cli.stage_runner as runner
+    import artic.artifacts.workers as runner
 
     def boom(*args, **kwargs):
         raise ZeroDivisionError("chunk exploded")

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from artic.cli.hierarchy_output import OutputFolder
+from artic.artifacts.scan_outputs import OutputFolder
 from artic.cli.main import STAGE_MODULES
 from artic.hierarchy.gnn import GraphLabellingNet, GraphNetConfig
 from artic.hierarchy.graph import PartGraphConfig

@@ -22,12 +22,13 @@ from artic.artifacts.object_dataset import ObjectDataset
 from artic.artifacts.ply import read_ply
 from artic.cli import render_scan
 from artic.cli.main import STAGE_MODULES
-from artic.cli.render_scan import STAGE, object_motion_types, object_poses, scan_file
+from artic.cli.render_scan import STAGE, scan_file
 from artic.cli.stage_runner import resolved_config, run_stage
 from artic.config.compose import validate
 from artic.errors import InputError
 from artic.objects.categories import build
 from artic.objects.tree import KinematicTree, object_tree
+from artic.render.scan_objects import object_motion_types, object_poses
 from cli_runner import run_cli
 
 # small and fast: the 128 px camera, 2 poses, 3 views per scan

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 from test_stages import tree_bytes
 
+from artic.artifacts import workers
 from artic.cli import stage_runner
 from artic.cli.main import load_stage
 from artic.errors import InputError
@@ -61,7 +62,7 @@ def test_bad_input_found_in_a_chunk_leaves_no_work_area(tmp_path, monkeypatch):
     def bad_chunk(fn, cfg, inputs, chunk, out_dir):
         raise InputError("dataset: a file found bad by the chunk")
 
-    monkeypatch.setattr(stage_runner, "_run_chunk", bad_chunk)
+    monkeypatch.setattr(workers, "_run_chunk", bad_chunk)
     out = tmp_path / "o"
     code, _, err = run_cli(*GEN, f"out={out}")
     assert code == 2 and "found bad by the chunk" in err
@@ -92,7 +93,7 @@ def test_a_shard_names_the_shards_still_missing(tmp_path):
 
 
 def _interrupt_on_second_chunk(monkeypatch, calls: list[int], armed: list[bool]) -> None:
-    original = stage_runner._run_chunk
+    original = workers._run_chunk
 
     def run(fn, cfg, inputs, chunk, out_dir):
         calls.append(chunk)
@@ -100,7 +101,7 @@ def _interrupt_on_second_chunk(monkeypatch, calls: list[int], armed: list[bool])
             raise KeyboardInterrupt
         return original(fn, cfg, inputs, chunk, out_dir)
 
-    monkeypatch.setattr(stage_runner, "_run_chunk", run)
+    monkeypatch.setattr(workers, "_run_chunk", run)
 
 
 def test_interrupted_force_run_resumes_with_or_without_force(tmp_path, tiny_objects, monkeypatch):

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from artic.artifacts import workers
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.artifacts.manifest import read_manifest
 from artic.artifacts.object_dataset import ObjectDataset
-from artic.cli import stage_runner
 from cli_runner import run_cli
 
 
@@ -161,7 +161,7 @@ def test_interrupted_run_resumes_without_redoing_finished_chunks(
     args = ["render-depth", "debug=tiny", f"dataset={tiny_objects}", f"out={out}"]
     calls: list[int] = []
     armed = [True]
-    original = stage_runner._run_chunk
+    original = workers._run_chunk
 
     def interrupt_second(fn, cfg, inputs, chunk, out_dir):
         calls.append(chunk)
@@ -169,7 +169,7 @@ def test_interrupted_run_resumes_without_redoing_finished_chunks(
             raise KeyboardInterrupt
         return original(fn, cfg, inputs, chunk, out_dir)
 
-    monkeypatch.setattr(stage_runner, "_run_chunk", interrupt_second)
+    monkeypatch.setattr(workers, "_run_chunk", interrupt_second)
     code, _, err = run_cli(*args)
     assert code == 130 and "resume" in err
     assert not out.exists() and out.with_name("depth.partial").is_dir()

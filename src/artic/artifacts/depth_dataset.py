@@ -39,6 +39,14 @@ def shard_name(chunk: int) -> str:
     return f"shards/shard-{chunk:05d}.npz"
 
 
+def write_shard(path: Path, arrays: dict[str, NDArray[Any]]) -> None:
+    """One shard, written whole (its folder created)."""
+    from artic.artifacts.formats import write_npz
+
+    path.parent.mkdir(parents=True)
+    write_npz(path, arrays)
+
+
 @dataclass(frozen=True)
 class Shard:
     """One shard: depth in float32 metres (0 = no return), or as stored."""

@@ -59,6 +59,13 @@ def write_json(path: Path, value: Any) -> None:
     path.write_text(json.dumps(value, indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
+def write_png(path: Path, image: NDArray[np.uint8]) -> None:
+    """An (H, W, 3) uint8 image as PNG (PIL, no timestamp: same image, same bytes)."""
+    from PIL import Image
+
+    Image.fromarray(image).save(path, format="PNG")
+
+
 def write_csv(path: Path, columns: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
     """CSV with a header; floats written with `repr` so they round-trip exactly."""
     with path.open("w", newline="") as f:

@@ -55,6 +55,42 @@ def split_of(object_id: int, train_per_test: int) -> str:
     return "train"
 
 
+def write_object(folder: Path, files: dict[str, str]) -> None:
+    """One object's files (relative path -> text) into `folder` (created, with meshes/)."""
+    (folder / "meshes").mkdir(parents=True)
+    for rel, text in files.items():
+        (folder / rel).write_text(text)
+
+
+def index_objects(
+    root: Path, objects: int, train_per_test: int, hierarchy: bool
+) -> tuple[list[tuple[int, str, str, int, int]], int]:
+    """The rows of index.csv (`INDEX_COLUMNS`) of the objects written under `root`, read
+    from their spec.json (and tree.json when `hierarchy`), and the number of distinct
+    kinematic trees among them (0 unless `hierarchy`)."""
+    from artic.objects.families import parse_spec
+    from artic.objects.spec import ObjectSpec
+    from artic.objects.tree import ObjectTree
+
+    rows = []
+    shapes = set()
+    for object_id in range(objects):
+        folder = root / object_dir(object_id)
+        spec = parse_spec((folder / "spec.json").read_text())
+        split = split_of(object_id, train_per_test)
+        # chirality 0: not applicable (a varying-structure object's doors each have a side)
+        chirality = int(spec.chirality) if isinstance(spec, ObjectSpec) else 0
+        if hierarchy:
+            tree = ObjectTree.model_validate_json((folder / TREE).read_text())
+            dof = tree.dof
+            shapes.add((tree.edges, tree.joint_types))
+        else:
+            assert isinstance(spec, ObjectSpec)  # the config validator ensures it
+            dof = spec.dof
+        rows.append((object_id, split, spec.category, dof, chirality))
+    return rows, len(shapes)
+
+
 @dataclass(frozen=True)
 class IndexRow:
     object_id: int

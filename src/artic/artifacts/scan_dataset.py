@@ -52,9 +52,41 @@ class ScanRow(NamedTuple):
     configuration: str  # joint values, space-separated, radians / metres
 
 
+def scan_file(object_id: int, pose: int, kind: str) -> str:
+    """Relative path of one cloud: scans/<object>_<pose>_<clean|noisy>.ply."""
+    return f"scans/{object_id:06d}_{pose:02d}_{kind}.ply"
+
+
 def tree_file(object_id: int) -> str:
     """Relative path of an object's ground-truth tree."""
     return f"trees/{object_id:06d}.json"
+
+
+def index_clouds(root: Path) -> tuple[list[ScanRow], set[str]]:
+    """The rows of index.csv for the clouds under root/scans (read from their PLY
+    headers, in file order) and where their poses came from (`poses` comments)."""
+    from artic.artifacts.ply import read_ply_header
+
+    rows: list[ScanRow] = []
+    sources: set[str] = set()
+    for path in sorted((root / "scans").glob("*.ply")):
+        header = read_ply_header(path)
+        meta = dict(c.partition(" ")[::2] for c in header.comments)
+        vertex = header.element("vertex")
+        assert vertex is not None
+        sources.add(meta["poses"])
+        rows.append(
+            ScanRow(
+                object_id=int(meta["object_id"]),
+                pose=int(meta["pose"]),
+                kind=meta["kind"],
+                split=meta["split"],
+                points=vertex.count,
+                file=path.relative_to(root).as_posix(),
+                configuration=meta["configuration"],
+            )
+        )
+    return rows, sources
 
 
 class ObjectSplit(NamedTuple):

@@ -27,3 +27,12 @@ def write_epoch_timings(folder: Path, phases: Mapping[str, Sequence[Mapping[str,
     """`timings.csv` (phase, epoch, seconds): one row per epoch of each phase's history."""
     rows = [[phase, h["epoch"], h[SECONDS]] for phase, hist in phases.items() for h in hist]
     write_csv(folder / TIMINGS_CSV, ["phase", "epoch", SECONDS], rows)
+
+
+def write_history(
+    path: Path, history: Sequence[Mapping[str, Any]], columns: Sequence[str] | None = None
+) -> None:
+    """A per-epoch history as CSV (metrics.csv): `columns` of each epoch, by default every
+    column but the wall-clock `seconds` (those go to `write_epoch_timings`)."""
+    columns = list(columns) if columns is not None else data_columns(history, ["epoch"])
+    write_csv(path, columns, [[h[c] for c in columns] for h in history])

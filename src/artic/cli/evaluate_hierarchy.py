@@ -22,21 +22,26 @@ pose, kind).
 from __future__ import annotations
 
 import functools
-import json
 import math
-import shutil
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from pydantic import Field
 
+from artic.artifacts.chunk_parts import take_json
 from artic.artifacts.formats import write_csv, write_json
 from artic.artifacts.scan_dataset import ScanDataset
-from artic.cli.stage_runner import Plan, Stage, available_cpus
+from artic.artifacts.workers import available_cpus
+from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig
 from artic.errors import InputError
-from artic.evaluation.hierarchy_report import COUNTS, SEGMENTATIONS, chapter4_report, table_rows
+from artic.evaluation.hierarchy_report import (
+    PER_OBJECT_COLUMNS,
+    chapter4_report,
+    per_object_rows,
+    table_rows,
+)
 from artic.hierarchy.config import CategoryName, HierarchyEvaluateConfig
 
 MODEL = "model.pt"
@@ -116,37 +121,17 @@ def evaluate_chunk(
 def _finalize(
     cfg: EvaluateHierarchyConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
-    records: list[dict[str, Any]] = []
-    skipped = 0
-    for path in sorted((work / CHUNKS).glob("*.json")):
-        data = json.loads(path.read_text())
-        records += data["records"]
-        skipped += int(data["skipped"])
-    shutil.rmtree(work / CHUNKS)
+    parts = take_json(sorted((work / CHUNKS).glob("*.json")))
+    (work / CHUNKS).rmdir()
+    records: list[dict[str, Any]] = [r for part in parts for r in part["records"]]
+    skipped = sum(int(part["skipped"]) for part in parts)
     if not records:
         raise InputError(f"scans: no test scan of {inputs['scans']} shows its root part")
     records.sort(key=lambda r: (r["object_id"], r["pose"], r["kind"]))
     rows = table_rows(records, cfg.evaluate.kinds)
     columns = list(rows[0])
     write_csv(work / "summary.csv", columns, [[r[c] for c in columns] for r in rows])
-    head = [
-        "object_id",
-        "pose",
-        "kind",
-        "points",
-        "true_parts",
-        "hidden_parts",
-        "pred_parts",
-        "n_ground_truth",
-        "motion_accuracy",
-    ]
-    tail = [*COUNTS, "tree_precision", "tree_recall", "tree_f1"]
-    per = [
-        [r[c] for c in head] + [seg] + [r[seg][c] for c in tail]
-        for r in records
-        for seg in SEGMENTATIONS
-    ]
-    write_csv(work / "per_object.csv", [*head, "segmentation", *tail], per)
+    write_csv(work / "per_object.csv", PER_OBJECT_COLUMNS, per_object_rows(records))
     objects = len({r["object_id"] for r in records})
     sources = (cfg.scans, cfg.segmenter, cfg.labeller)
     report = chapter4_report(cfg.category.name, sources, rows, skipped, objects)

@@ -17,7 +17,8 @@ from pydantic import Field
 
 from artic.artifacts.depth_dataset import DepthDataset, source_objects
 from artic.artifacts.formats import write_csv
-from artic.cli.stage_runner import Plan, Stage, available_cpus
+from artic.artifacts.workers import available_cpus
+from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig
 from artic.errors import InputError
 from artic.kinematics.config import CategoryRef, MdnEvaluateConfig
@@ -62,16 +63,8 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
     ds = DepthDataset.open(inputs["depth"])
     if ds.label_columns != list(predictor.codec.columns):
         raise InputError(f"depth: {inputs['depth']} has other label columns than the model")
-    train_parts = [load_split(ds, s) for s in ("train", "val")]
-    train = DepthSplit(
-        np.concatenate([p.depth for p in train_parts]),
-        np.concatenate([p.labels for p in train_parts]),
-        np.concatenate([p.object_id for p in train_parts]),
-    )
-    test = load_split(ds, "test")
-    n = cfg.evaluate.max_test_images
-    if n is not None:
-        test = DepthSplit(test.depth[:n], test.labels[:n], test.object_id[:n])
+    train = DepthSplit.concat([load_split(ds, s) for s in ("train", "val")])
+    test = load_split(ds, "test").head(cfg.evaluate.max_test_images)
     if len(test) == 0 or len(train) == 0:
         raise InputError(f"depth: {inputs['depth']} has no test or no training images")
     objects = ObjectDataset.open(inputs["objects"])

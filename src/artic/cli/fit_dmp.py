@@ -20,64 +20,20 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-from pydantic import Field, model_validator
 
 from artic.artifacts.formats import write_csv, write_json
 from artic.cli.stage_runner import Plan, Stage
-from artic.config.schemas import StageConfig, Strict
-from artic.planning.demo_files import Demo, DemoSet, load_demos
-from artic.policies.dmp import DMP_JSON, DMPConfig, DMPFile, DMPParams, fit_dmp, rollout_dmp
+from artic.planning.demo_files import load_demos
+from artic.policies.dmp import DMP_JSON, DMPFile, fit_dmp, rollout_dmp
+from artic.policies.dmp_fit import FIT_COLUMNS, FitDmpConfig, fit_stats, reproduction_rows
 
 FIT_CSV = "fit.csv"
 FIT_PNG = "fit.png"
 
 
-class TaskRef(Strict):
-    """The task config group (`conf/common/task`); fit-dmp needs only its name."""
-
-    model_config = Strict.model_config | {"extra": "ignore"}
-    name: str = Field(description="task name: drawer, microwave, tball")
-
-    @model_validator(mode="before")
-    @classmethod
-    def _from_name(cls, data: Any) -> Any:
-        return {"name": data} if isinstance(data, str) else data
-
-
-class FitDmpConfig(StageConfig):
-    task: TaskRef
-    demos: str = Field(description="a plan-demos output folder of the task")
-    dmp: DMPConfig = Field(default_factory=DMPConfig, description="gains and basis")
-    max_demos: int | None = Field(
-        None, gt=0, description="fit only the first N successful demos (null: all; thesis: 1)"
-    )
-    plot: bool = Field(True, description="write fit.png")
-
-
 def _plan(cfg: FitDmpConfig, inputs: dict[str, Path]) -> Plan:
     demos = load_demos(inputs["demos"], cfg.task.name, cfg.max_demos)
     return Plan([len(demos.demos)], "demos")
-
-
-def reproduction_rows(
-    demos: list[Demo], params: DMPParams, cfg: DMPConfig, dt: float
-) -> list[list[Any]]:
-    """fit.csv rows: demo, file, joint, range, rms, rms_own (rad)."""
-    rows: list[list[Any]] = []
-    for demo in demos:
-        steps = demo.t.shape[0]
-        written = rollout_dmp(params, cfg, dt, steps).y
-        own_params = DMPParams(params.weights_, demo.q[0], demo.q[-1], float(demo.t[-1]))
-        own = rollout_dmp(own_params, cfg, dt, steps).y
-        rms = np.sqrt(((written - demo.q) ** 2).mean(axis=0))
-        rms_own = np.sqrt(((own - demo.q) ** 2).mean(axis=0))
-        span = np.ptp(demo.q, axis=0)
-        for j in range(demo.q.shape[1]):
-            rows.append([demo.index, demo.file, j, span[j], rms[j], rms_own[j]])
-    return rows
 
 
 def fit_chunk(cfg: FitDmpConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
@@ -88,38 +44,15 @@ def fit_chunk(cfg: FitDmpConfig, inputs: dict[str, Path], chunk: int, tmp: Path)
     record["demos_used"] = [d.file for d in demos.demos]
     write_json(tmp / DMP_JSON, record)
     rows = reproduction_rows(demos.demos, params, cfg.dmp, demos.control_dt)
-    write_csv(tmp / FIT_CSV, ["demo", "file", "joint", "range", "rms", "rms_own"], rows)
+    write_csv(tmp / FIT_CSV, FIT_COLUMNS, rows)
     if cfg.plot:
-        _plot(tmp / FIT_PNG, demos, params, cfg.dmp)
+        from artic.evaluation.plots import dmp_fit_plot
+
+        longest = max(d.t.shape[0] for d in demos.demos)
+        traj = rollout_dmp(params, cfg.dmp, demos.control_dt, longest)
+        title = f"{demos.task}: DMPs ({cfg.dmp.n_basis} basis functions) vs demos"
+        dmp_fit_plot(tmp / FIT_PNG, [(d.t, d.q) for d in demos.demos], (traj.t, traj.y), title)
     return len(demos.demos)
-
-
-def _plot(path: Path, demos: DemoSet, params: DMPParams, cfg: DMPConfig) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    longest = max(d.t.shape[0] for d in demos.demos)
-    traj = rollout_dmp(params, cfg, demos.control_dt, longest)
-    cols = min(4, demos.n_joints)
-    rows = -(-demos.n_joints // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False)
-    for j, ax in enumerate(axes.ravel()):
-        if j >= demos.n_joints:
-            ax.axis("off")
-            continue
-        for k, d in enumerate(demos.demos):
-            ax.plot(d.t, d.q[:, j], color="0.6", lw=1, label="demos" if k == 0 else None)
-        ax.plot(traj.t, traj.y[:, j], color="C0", lw=1.5, label="DMP")
-        ax.set_title(f"joint {j}", fontsize=9)
-        ax.set_xlabel("t (s)", fontsize=8)
-        ax.set_ylabel("q (rad)", fontsize=8)
-    axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"{demos.task}: DMPs ({cfg.n_basis} basis functions) vs demos", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, format="png", dpi=90, metadata={"Software": None})
-    plt.close(fig)
 
 
 def _finalize(
@@ -128,19 +61,12 @@ def _finalize(
     info = json.loads((work / DMP_JSON).read_text())
     with (work / FIT_CSV).open(newline="") as f:
         table = list(csv.DictReader(f))
-    span, rms, rms_own = (
-        np.array([float(r[c]) for r in table]) for c in ("range", "rms", "rms_own")
-    )
-    moving = span > 1e-3
-    relative = float((rms[moving] / span[moving]).max()) if moving.any() else 0.0
     return {
         "task": cfg.task.name,
         "demos used": len(info["demos_used"]),
         "basis functions": cfg.dmp.n_basis,
         "tau (s)": round(float(info["tau"]), 4),
-        "max RMS (mrad)": round(1000 * float(rms.max()), 2),
-        "max RMS own start/goal (mrad)": round(1000 * float(rms_own.max()), 2),
-        "max RMS / range (%)": round(100 * relative, 3),
+        **fit_stats(table),
     }
 
 

@@ -19,7 +19,6 @@ every input point still gets a label. Outputs are in metres.
 from __future__ import annotations
 
 import logging
-import re
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,39 +29,45 @@ from numpy.typing import NDArray
 
 from artic.artifacts.manifest import LOG
 from artic.artifacts.ply import write_ply
-from artic.cli.hierarchy_output import (
+from artic.artifacts.scan_file import read_scan, require_points
+from artic.artifacts.scan_outputs import (
     OutputFolder,
     check_output_folder,
-    draw_hierarchy,
-    dumps,
-    hierarchy_document,
-    motion_dict,
-)
-from artic.cli.scan_input import (
-    Options,
-    Scan,
     default_out,
-    load_labeller_for,
-    load_segmenter_for,
-    read_scan,
-    require_points,
+    write_document,
+    write_text_files,
 )
 from artic.cli.stage_runner import InternalError
 from artic.errors import InputError
+from artic.evaluation.hierarchy_plot import draw_hierarchy
+from artic.hierarchy.infer import MAX_POINTS
+from artic.hierarchy.models import find_labeller, find_segmenter, hierarchy_config
+from artic.hierarchy.report import (
+    hierarchy_document,
+    input_info,
+    part_subset,
+    robot_name,
+    rounded_timings,
+    segmentation_document,
+)
 from artic.objects.tree import MOTION_TYPES
 
 if TYPE_CHECKING:
-    from artic.hierarchy.infer import (
-        HierarchyConfig,
-        HierarchyResult,
-        LabelledHierarchy,
-        ScanSegmentation,
-    )
-    from artic.hierarchy.models import LoadedLabeller, LoadedSegmenter
+    from artic.hierarchy.infer import HierarchyResult, LabelledHierarchy, ScanSegmentation
 
 __all__ = ["Options", "print_summary", "run_build_hierarchy", "run_infer_hierarchy", "run_segment"]
 
 log = logging.getLogger("artic")
+
+
+@dataclass(frozen=True)
+class Options:
+    """The settings shared by the three commands (recorded in the manifest)."""
+
+    category: str | None = None  # None: storage_furniture for default model paths, unchecked
+    scale: str = "1"  # "auto" or a positive factor applied to the coordinates
+    max_points: int = MAX_POINTS
+    seed: int = 0
 
 
 @dataclass(frozen=True)
@@ -75,19 +80,6 @@ class CommandResult:
     points: int
     hierarchy: LabelledHierarchy | None = None
     timings: dict[str, float] = field(default_factory=dict)
-
-
-def _config(
-    segmenter: LoadedSegmenter | None, labeller: LoadedLabeller | None, opts: Options
-) -> HierarchyConfig:
-    from artic.hierarchy.infer import HierarchyConfig
-
-    cfg = HierarchyConfig(max_points=opts.max_points)
-    if segmenter is not None:
-        cfg = HierarchyConfig(segmenter.inference, cfg.graph, cfg.joints, opts.max_points)
-    if labeller is not None:
-        cfg = HierarchyConfig(cfg.segmentation, labeller.graph, cfg.joints, opts.max_points)
-    return cfg
 
 
 def _options_dict(opts: Options, models: dict[str, Path]) -> dict[str, Any]:
@@ -114,32 +106,18 @@ def _write(folder: OutputFolder, command: str, body: Any) -> None:
         raise InternalError(f"{command}: {type(err).__name__}: {err}", folder.path / LOG) from err
 
 
-def _input_info(scan: Scan, worked_on: int) -> dict[str, Any]:
-    return {
-        "file": str(scan.path),
-        "points": len(scan.points),
-        "scale": scan.factor,
-        "worked_on_points": int(worked_on),
-        "frame": "the input's, scaled to metres",
-    }
-
-
-def _timings(timings: dict[str, float]) -> dict[str, float]:
-    return {k: round(v, 4) for k, v in timings.items()}
-
-
 def run_segment(
     scan_path: Path, model: Path | None, out: Path | None, opts: Options
 ) -> CommandResult:
     """`artic segment`: parts.ply + segmentation.json."""
     from artic.hierarchy.infer import required_points, segment_scan
 
-    scan = read_scan(scan_path, opts)
+    scan = read_scan(scan_path, opts.scale, opts.max_points, opts.seed)
     out = out or default_out(scan_path, "segment")
     check_output_folder(out, "segment")  # every input before the models are loaded
-    segmenter, model_path = load_segmenter_for(model, opts)
+    segmenter, model_path = find_segmenter(model, opts.category)
     require_points(scan, required_points(segmenter.model))
-    cfg = _config(segmenter, None, opts)
+    cfg = hierarchy_config(segmenter, None, opts.max_points)
     folder = OutputFolder(
         out,
         "segment",
@@ -161,45 +139,15 @@ def run_segment(
             seg.part_confidence[seg.part_id],
             comments,
         )
-        parts = []
-        for p in range(seg.num_parts):
-            mask = seg.part_id == p
-            votes = np.bincount(seg.motion_type[mask], minlength=len(MOTION_TYPES))
-            parts.append(
-                {
-                    "id": p,
-                    "points": int(mask.sum()),
-                    "confidence": round(float(seg.part_confidence[p]), 6),
-                    "motion_type": MOTION_TYPES[int(votes.argmax())],
-                    "motion_probabilities": motion_dict(seg.motion_prob[mask].mean(axis=0)),
-                }
-            )
-        document = {
-            "format": 1,
-            "kind": "artic-segmentation",
-            "num_parts": seg.num_parts,
-            "parts": parts,
-            "ply": "parts.ply",
-            "input": _input_info(scan, len(seg.sampled)),
-            "models": {"segmenter": str(model_path), "category": segmenter.category},
-            "timings_s": _timings(seg.timings),
-        }
-        (tmp / "segmentation.json").write_text(dumps(document))
+        worked_on = input_info(scan.path, len(scan.points), scan.factor, len(seg.sampled))
+        models = {"segmenter": str(model_path), "category": segmenter.category}
+        document = segmentation_document(seg, worked_on, models)
+        write_document(tmp / "segmentation.json", document)
 
     _write(folder, "segment", body)
     seg = done[0]
     folder.publish(opts.seed, {"parts": seg.num_parts, "points": len(scan.points)})
     return CommandResult("segment", out, seg.num_parts, len(scan.points), None, seg.timings)
-
-
-def _geometry_subset(part_id: NDArray[np.int64], opts: Options) -> NDArray[np.int64]:
-    """Indices of at most ~max_points points keeping every part (build-hierarchy)."""
-    from artic.hierarchy.infer import subsample
-
-    idx = subsample(len(part_id), opts.max_points, np.random.default_rng(opts.seed))
-    missing = np.setdiff1d(np.unique(part_id), np.unique(part_id[idx]))
-    extra = [np.flatnonzero(part_id == p)[:32] for p in missing]
-    return np.unique(np.concatenate([idx, *extra])) if extra else idx
 
 
 def _write_hierarchy_files(
@@ -214,14 +162,10 @@ def _write_hierarchy_files(
     parts of `points` (M, 3) / `part_id` (M,)."""
     from artic.hierarchy.urdf import TreeUrdfConfig, tree_to_urdf
 
-    (tmp / "hierarchy.json").write_text(dumps(document))
-    robot = re.sub(r"[^A-Za-z0-9_]", "_", name) or "inferred_object"
-    files = tree_to_urdf(hierarchy.tree, points, part_id, TreeUrdfConfig(name=robot))
-    (tmp / "object.urdf").write_text(files.urdf)
-    for rel, text in files.meshes.items():
-        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-        (tmp / rel).write_text(text)
-    draw_hierarchy(tmp / "hierarchy.png", points, part_id, hierarchy, name)
+    write_document(tmp / "hierarchy.json", document)
+    files = tree_to_urdf(hierarchy.tree, points, part_id, TreeUrdfConfig(name=robot_name(name)))
+    write_text_files(tmp, {"object.urdf": files.urdf, **files.meshes})
+    draw_hierarchy(tmp / "hierarchy.png", points, part_id, hierarchy.tree, name)
 
 
 def run_build_hierarchy(
@@ -230,7 +174,7 @@ def run_build_hierarchy(
     """`artic build-hierarchy`: hierarchy.json, object.urdf + meshes, hierarchy.png."""
     from artic.hierarchy.infer import build_hierarchy
 
-    scan = read_scan(parts_path, opts)
+    scan = read_scan(parts_path, opts.scale, opts.max_points, opts.seed)
     if scan.part_id is None:
         raise InputError(
             f"{parts_path}: no part_id property; segment the scan first (artic segment)"
@@ -239,11 +183,11 @@ def run_build_hierarchy(
         raise InputError(f"{parts_path}: part_id must be >= 0 for every point")
     out = out or default_out(parts_path, "build-hierarchy")
     check_output_folder(out, "build-hierarchy")  # every input before the model is loaded
-    labeller, model_path = load_labeller_for(model, opts)
+    labeller, model_path = find_labeller(model, opts.category)
     input_ids, inverse = np.unique(scan.part_id, return_inverse=True)
     part_id = inverse.astype(np.int64)
-    cfg = _config(None, labeller, opts)
-    keep = _geometry_subset(part_id, opts)
+    cfg = hierarchy_config(None, labeller, opts.max_points)
+    keep = part_subset(part_id, opts.max_points, opts.seed)
     work, work_id = scan.points[keep], part_id[keep]
     folder = OutputFolder(
         out,
@@ -258,13 +202,13 @@ def run_build_hierarchy(
         hierarchy = build_hierarchy(work, work_id, labeller.model, cfg, rng)
         done.append(hierarchy)
         extra = {
-            "input": _input_info(scan, len(keep)),
+            "input": input_info(scan.path, len(scan.points), scan.factor, len(keep)),
             "models": {
                 "segmenter": None,
                 "labeller": str(model_path),
                 "category": labeller.category,
             },
-            "timings_s": _timings(hierarchy.timings),
+            "timings_s": rounded_timings(hierarchy.timings),
             "urdf": "object.urdf",
         }
         document = hierarchy_document(hierarchy, part_id, None, input_ids.tolist(), extra)
@@ -294,13 +238,13 @@ def run_infer_hierarchy(
     hierarchy.png."""
     from artic.hierarchy.infer import infer_hierarchy, required_points
 
-    scan = read_scan(scan_path, opts)
+    scan = read_scan(scan_path, opts.scale, opts.max_points, opts.seed)
     out = out or default_out(scan_path, "infer-hierarchy")
     check_output_folder(out, "infer-hierarchy")  # every input before the models are loaded
-    segmenter, seg_path = load_segmenter_for(segmenter_model, opts)
-    labeller, lab_path = load_labeller_for(labeller_model, opts)
+    segmenter, seg_path = find_segmenter(segmenter_model, opts.category)
+    labeller, lab_path = find_labeller(labeller_model, opts.category)
     require_points(scan, required_points(segmenter.model))
-    cfg = _config(segmenter, labeller, opts)
+    cfg = hierarchy_config(segmenter, labeller, opts.max_points)
     models = {"segmenter": seg_path, "labeller": lab_path}
     folder = OutputFolder(
         out, "infer-hierarchy", _options_dict(opts, models), {"scan": scan_path, **models}
@@ -313,13 +257,13 @@ def run_infer_hierarchy(
         done.append(result)
         seg, hierarchy = result.segmentation, result.hierarchy
         extra = {
-            "input": _input_info(scan, len(seg.sampled)),
+            "input": input_info(scan.path, len(scan.points), scan.factor, len(seg.sampled)),
             "models": {
                 "segmenter": str(seg_path),
                 "labeller": str(lab_path),
                 "category": labeller.category,
             },
-            "timings_s": _timings(result.timings),
+            "timings_s": rounded_timings(result.timings),
             "urdf": "object.urdf",
             "ply": "parts.ply",
         }

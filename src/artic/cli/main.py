@@ -158,11 +158,7 @@ def predict(
     import json
 
     from artic.cli.predict import predict as run
-    from artic.errors import InputError
-    from artic.kinematics import ESTIMATORS
 
-    if estimator not in ESTIMATORS:
-        raise InputError(f"--estimator: '{estimator}' (available: {', '.join(ESTIMATORS)})")
     result = run(image, category, camera, model, mask, samples, estimator, seed)
     typer.echo(json.dumps(result, indent=2))
 
@@ -251,6 +247,10 @@ def infer_hierarchy_command(
     print_summary(run_infer_hierarchy(scan, segmenter, labeller, out, opts))
 
 
+_FORCE_ALL = typer.Option(False, "--force", help="Recompute every stage.")
+_DRY_RUN = typer.Option(False, "--dry-run", help="List the stages and exit.")
+
+
 @app.command("pipeline")
 @handle_errors
 def pipeline(
@@ -258,8 +258,8 @@ def pipeline(
     variables: list[str] | None = typer.Argument(
         None, help="pipeline variables NAME=VALUE (declared under vars: in the file)"
     ),
-    force: bool = typer.Option(False, "--force", help="Recompute every stage."),
-    dry_run: bool = typer.Option(False, "--dry-run", help="List the stages and exit."),
+    force: bool = _FORCE_ALL,
+    dry_run: bool = _DRY_RUN,
 ) -> None:
     """Run a chain of stages from stages/NAME.yaml, skipping those that are up to date.
 
@@ -274,8 +274,8 @@ def pipeline(
 @handle_errors
 def bootstrap(
     task: str = typer.Option("drawer", "--task", help="drawer, microwave or tball"),
-    force: bool = typer.Option(False, "--force", help="Recompute every stage."),
-    dry_run: bool = typer.Option(False, "--dry-run", help="List the stages and exit."),
+    force: bool = _FORCE_ALL,
+    dry_run: bool = _DRY_RUN,
 ) -> None:
     """Algorithm 1 for one task: plan demos, fit the policy, policy search from it and from
     random init, evaluate (the pipeline stages/bootstrap.yaml).

@@ -1,15 +1,12 @@
 """`artic pipeline NAME`: run the stages of `stages/NAME.yaml` in order.
 
-A pipeline file maps stage names to `{cmd, overrides, deps, outs}`; `cmd` is a
+A pipeline file (`artic.config.pipeline_file`: its schema, `vars` and `${...}`
+substitution) maps stage names to `{cmd, overrides, deps, outs}`; `cmd` is a
 registered stage's name (`cli/registry.py`), or an alias of one (`render-depth` with
 `render=scan`). Each stage runs in this process through the same runner as its
 subcommand, so an up-to-date stage is skipped by its own manifest check. `deps` must be
 produced by an earlier stage or exist already; `outs` must name the folder the stage
 writes.
-
-A pipeline may declare `vars` with defaults (`vars: {task: drawer}`); `${task}` in any
-override, dep or out is replaced by the value, which `artic pipeline NAME task=tball`
-sets. Other `${...}` are left to Hydra's interpolation.
 """
 
 from __future__ import annotations
@@ -18,57 +15,14 @@ import logging
 import time
 from pathlib import Path
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from rich.console import Console
 from rich.table import Table
 
 from artic.cli.registry import load_stage, resolve, say_alias, stage_entries
 from artic.config.compose import conf_dir
+from artic.config.pipeline_file import Pipeline, norm, parse_pipeline
+from artic.config.pipeline_file import parse_vars as parse_vars
 from artic.errors import InputError
-
-
-class PipelineStage(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    cmd: str = Field(description="subcommand, e.g. generate-dataset")
-    overrides: list[str] = Field(default_factory=list, description="Hydra overrides")
-    deps: list[str] = Field(default_factory=list, description="input folders")
-    outs: list[str] = Field(default_factory=list, description="output folders")
-
-
-class Pipeline(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    description: str = ""
-    vars: dict[str, str] = Field(default_factory=dict, description="variables and defaults")
-    stages: dict[str, PipelineStage]
-
-    def substituted(self, values: dict[str, str]) -> Pipeline:
-        """The pipeline with `${name}` replaced by `values` (else the declared default)."""
-        unknown = sorted(set(values) - set(self.vars))
-        if unknown:
-            known = ", ".join(sorted(self.vars)) or "none"
-            raise InputError(
-                f"pipeline variable '{unknown[0]}' is not declared (declared: {known})"
-            )
-        final = {**self.vars, **values}
-
-        def sub(text: str) -> str:
-            for name, value in final.items():
-                text = text.replace("${" + name + "}", value)
-            return text
-
-        stages = {
-            name: PipelineStage(
-                cmd=st.cmd,
-                overrides=[sub(o) for o in st.overrides],
-                deps=[sub(d) for d in st.deps],
-                outs=[sub(o) for o in st.outs],
-            )
-            for name, st in self.stages.items()
-        }
-        return Pipeline(description=self.description, vars=final, stages=stages)
 
 
 def pipeline_path(name: str) -> Path:
@@ -83,27 +37,8 @@ def pipeline_path(name: str) -> Path:
     return path
 
 
-def parse_vars(assignments: list[str]) -> dict[str, str]:
-    """`["task=drawer"]` -> `{"task": "drawer"}`; a malformed item is an InputError."""
-    values: dict[str, str] = {}
-    for item in assignments:
-        name, sep, value = item.partition("=")
-        if not sep or not name.isidentifier() or not value:
-            raise InputError(f"pipeline variable '{item}': expected NAME=VALUE")
-        values[name] = value
-    return values
-
-
 def load_pipeline(path: Path, values: dict[str, str] | None = None) -> Pipeline:
-    try:
-        data = yaml.safe_load(path.read_text())
-        pipeline = Pipeline.model_validate(data).substituted(values or {})
-    except yaml.YAMLError as err:
-        raise InputError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
-    except ValidationError as err:
-        first = err.errors()[0]
-        loc = ".".join(str(p) for p in first["loc"])
-        raise InputError(f"{path}: field {loc}: {first['msg']}") from None
+    pipeline = parse_pipeline(path.read_text(), str(path), values)
     _check(path, pipeline)
     return pipeline
 
@@ -118,16 +53,12 @@ def _check(path: Path, pipeline: Pipeline) -> None:
                 f"(known: {', '.join(sorted(known))})"
             )
         for dep in stage.deps:
-            if _norm(dep) not in produced and not Path(dep).exists():
+            if norm(dep) not in produced and not Path(dep).exists():
                 raise InputError(
                     f"{path}: stage {name}: dep {dep} is neither made by an earlier stage "
                     "nor present"
                 )
-        produced.update(_norm(o) for o in stage.outs)
-
-
-def _norm(p: str) -> str:
-    return Path(p).as_posix().rstrip("/")
+        produced.update(norm(o) for o in stage.outs)
 
 
 def run_pipeline(
@@ -158,7 +89,7 @@ def run_pipeline(
         except InputError as err:
             raise InputError(f"{path}: stage {stage_name}: {err}") from None
         out = str(raw["out"])
-        if spec.outs and _norm(out) not in {_norm(o) for o in spec.outs}:
+        if spec.outs and norm(out) not in {norm(o) for o in spec.outs}:
             raise InputError(f"{path}: stage {stage_name}: writes {out}, not listed in its outs")
         planned.append((stage_name, spec, entry, stage, out))
     for stage_name, spec, entry, stage, out in planned:

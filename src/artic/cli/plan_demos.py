@@ -19,20 +19,26 @@ Outputs are the same bytes for the same seed and config, whatever the sharding, 
 from __future__ import annotations
 
 import functools
-import json
 import math
 import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
+from artic.artifacts.chunk_parts import take_json
 from artic.artifacts.formats import write_json
 from artic.cli.stage_runner import Plan, Stage
 from artic.errors import InputError
 from artic.planning.demo_files import DEMOS_JSON, demo_name, write_demo
 from artic.planning.models import ModelConfig
-from artic.planning.task_demos import PlanDemosConfig, mdn_folder, plan_one, planning_model
+from artic.planning.task_demos import (
+    PlanDemosConfig,
+    demo_stats,
+    demos_index,
+    mdn_folder,
+    plan_one,
+    planning_model,
+    timings_record,
+)
 from artic.sim.tasks import TaskConfig
 
 if TYPE_CHECKING:
@@ -100,10 +106,7 @@ def plan_chunk(cfg: PlanDemosConfig, inputs: dict[str, Path], chunk: int, tmp: P
 def _finalize(
     cfg: PlanDemosConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
-    records = [
-        json.loads((work / RECORDS / f"demo_{i:03d}.json").read_text())
-        for i in range(cfg.demos.count)
-    ]
+    records = take_json(work / RECORDS / f"demo_{i:03d}.json" for i in range(cfg.demos.count))
     # wall-clock times vary from run to run: they go to timings.json, demos.json stays
     # deterministic
     times = [r.pop("planning_time_s") for r in records]
@@ -121,55 +124,10 @@ def _finalize(
     model_record: dict[str, Any] = (
         {"source": "true"} if cfg.model.source == "true" else _cached_model(cfg)[1]
     )
-    write_json(
-        work / DEMOS_JSON,
-        {
-            "task": cfg.task.name,
-            "n_requested": cfg.demos.count,
-            "control_dt": cfg.task.control_dt,
-            "horizon": cfg.task.horizon,
-            "goal": list(cfg.task.goal),
-            "n_joints": TaskWorld.n_robot,
-            "dof_object": len(cfg.task.goal),
-            "kinematic_model": model_record,
-            "planner": cfg.planner.name,
-            "demos": records,
-        },
-    )
-    write_json(
-        work / TIMINGS_JSON,
-        {
-            "task": cfg.task.name,
-            "median_planning_time_s": round(float(np.median(times)), 4),
-            "demos": [
-                {"index": r["index"], "status": r["status"], "planning_time_s": t}
-                for r, t in zip(records, times, strict=True)
-            ],
-        },
-    )
+    write_json(work / DEMOS_JSON, demos_index(cfg, records, model_record, TaskWorld.n_robot))
+    write_json(work / TIMINGS_JSON, timings_record(cfg, records, times))
     shutil.rmtree(work / RECORDS)
-    stats: dict[str, float | int | str] = {
-        "task": cfg.task.name,
-        "kinematic model": cfg.model.source,
-        "demos planned": len(ok),
-        "demos failed": len(records) - len(ok),
-        "median planning time (s)": float(np.median(times)),
-        "median steps": int(np.median([r["steps"] for r in ok])) if ok else 0,
-    }
-    if cfg.model.source == "predicted":
-        unit = model_record["configuration_error_unit"]
-        stats["MDN"] = model_record["mdn"]
-        for key, name in (
-            ("axis_position_error_cm", "axis position error (cm)"),
-            ("axis_direction_error_deg", "axis direction error (deg)"),
-            ("configuration_error", f"configuration error ({unit})"),
-        ):
-            stats[name] = round(float(np.mean(model_record[key])), 4)
-    executed = [r["executed"] for r in ok if "executed" in r]
-    if executed:
-        stats["executed successes"] = sum(e["success"] for e in executed)
-        stats["median executed goal error"] = float(np.median([e["goal_error"] for e in executed]))
-    return stats
+    return demo_stats(cfg, records, times, model_record)
 
 
 STAGE: Stage[PlanDemosConfig] = Stage(

@@ -19,14 +19,14 @@ format, or `policy.pt`), and `summary.json`.
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from artic.artifacts.formats import read_npz, write_csv, write_json
-from artic.cli.stage_runner import Plan, Stage, available_cpus
+from artic.artifacts.chunk_parts import take_csv_rows
+from artic.artifacts.formats import write_csv, write_json
+from artic.artifacts.workers import available_cpus
+from artic.cli.stage_runner import Plan, Stage
 from artic.learning.search import (
     CURVE,
     CURVE_COLUMNS,
@@ -37,6 +37,7 @@ from artic.learning.search import (
     seed_dir,
 )
 from artic.learning.search import Evaluator as _Evaluator  # noqa: F401  (tests patch its row)
+from artic.learning.search_output import run_summary
 from artic.planning.demo_files import load_demo_pairs
 
 
@@ -61,6 +62,7 @@ def search_chunk(cfg: PolicySearchConfig, inputs: dict[str, Path], chunk: int, t
     """Run seed `chunk`: policy search with per-update checkpoints in the work area;
     writes the seed's curve and final policy into tmp."""
     from artic.artifacts.model_file import load_torch_file, save_torch_file
+    from artic.artifacts.resume import load_state, save_state
     from artic.artifacts.workdir import WorkDir
     from artic.learning.search import dapg_search, pi2cma_search, random_dmp, run_seed
     from artic.policies.dmp import DMP_JSON, DMPFile
@@ -79,8 +81,8 @@ def search_chunk(cfg: PolicySearchConfig, inputs: dict[str, Path], chunk: int, t
             else:
                 params, dcfg = random_dmp(cfg, run_seed(cfg.seed, chunk)), cfg.pi2cma_policy.basis
             state_file = resume / "state.npz"
-            rows, final = pi2cma_search(cfg, chunk, env, params, dcfg, _load_state(state_file),
-                                        lambda state: _save_state(state_file, state))  # fmt: skip
+            rows, final = pi2cma_search(cfg, chunk, env, params, dcfg, load_state(state_file),
+                                        lambda state: save_state(state_file, state))  # fmt: skip
             record = DMPFile(task.name, task.control_dt, final, dcfg).to_json_dict()
             write_json(out / DMP_JSON, record)
         else:
@@ -103,76 +105,16 @@ def search_chunk(cfg: PolicySearchConfig, inputs: dict[str, Path], chunk: int, t
     return len(rows)
 
 
-def _load_state(path: Path) -> dict[str, Any] | None:
-    if not path.is_file():
-        return None
-    state = read_npz(path)
-    state["n_updates"] = state["n_updates"].reshape(())  # write_npz stores it as (1,)
-    return state
-
-
-def _save_state(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    from artic.artifacts.formats import replace_file, write_npz
-
-    tmp = path.with_suffix(".tmp")
-    write_npz(tmp, arrays, compress=False)
-    replace_file(tmp, path)
-
-
 def _finalize(
     cfg: PolicySearchConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
-    rows: list[list[str]] = []
-    for i in range(cfg.seeds):
-        with (work / seed_dir(i) / "curve.csv").open(newline="") as f:
-            rows.extend(list(csv.reader(f))[1:])
-        (work / seed_dir(i) / "curve.csv").unlink()
-    table = np.array([[float(v) for v in r] for r in rows])
+    rows = take_csv_rows(work / seed_dir(i) / "curve.csv" for i in range(cfg.seeds))
     write_csv(work / CURVE, CURVE_COLUMNS, [r[:-1] for r in rows])
     write_csv(work / TIMING, ["seed", "update", "seconds"], [[r[0], r[1], r[-1]] for r in rows])
-    last = table[table[:, 1] == cfg.updates]
-    first = table[table[:, 1] == 0]
-    seconds = table[table[:, 1] > 0, 7]
-    summary = {
-        "task": cfg.task.name,
-        "init": cfg.init,
-        "algorithm": algorithm_of(cfg),
-        "policy": "dmp" if algorithm_of(cfg) == "pi2cma" else "gaussian_mlp",
-        "seeds": cfg.seeds,
-        "updates": cfg.updates,
-        "rollouts_per_update": cfg.rollouts,
-        "eval_rollouts": cfg.eval_rollouts,
-        "initial_normalised_return": _mean_sem(first[:, 4]),
-        "final_normalised_return": _mean_sem(last[:, 4]),
-        "final_success_rate": float(last[:, 5].mean()),
-        "normalised_return": "1 - R / R_idle; R: return of the mean policy from fixed starts, "
-        "R_idle: return of a robot that keeps still from the same starts",
-        "random_init": (
-            "DMP: y0 = goal = robot start, weights ~ N(0, random_weight_std^2)"
-            if algorithm_of(cfg) == "pi2cma"
-            else "MLP: PyTorch default init, output layer x0.01 (mean action ~ 0)"
-        ),
-        "inputs": {k: str(v) for k, v in inputs.items()},
-        "final_policies": [
-            f"{seed_dir(i)}/{'dmp.json' if algorithm_of(cfg) == 'pi2cma' else 'policy.pt'}"
-            for i in range(cfg.seeds)
-        ],
-    }
+    table = np.array([[float(v) for v in r] for r in rows])
+    summary, stats = run_summary(cfg, {k: str(v) for k, v in inputs.items()}, table)
     write_json(work / "summary.json", summary)
-    return {
-        "task": cfg.task.name,
-        "init": cfg.init,
-        "algorithm": algorithm_of(cfg),
-        "seeds": cfg.seeds,
-        "final normalised return": round(float(last[:, 4].mean()), 4),
-        "final success rate": round(float(last[:, 5].mean()), 3),
-        "s per update": round(float(seconds.mean()), 3) if len(seconds) else 0.0,
-    }
-
-
-def _mean_sem(x: np.ndarray) -> dict[str, float]:
-    sem = float(x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else 0.0
-    return {"mean": float(x.mean()), "sem": sem}
+    return stats
 
 
 STAGE: Stage[PolicySearchConfig] = Stage(

@@ -8,125 +8,9 @@ An image from another camera is reprojected into the training camera.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
-
-import numpy as np
-from numpy.typing import NDArray
-
-from artic.errors import InputError
-
-#: a depth image (metres) whose median return is farther than this is in millimetres
-MAX_DEPTH_M = 20.0
-
-
-def _first_line(err: BaseException) -> str:
-    lines = str(err).strip().splitlines()
-    return lines[0] if lines else type(err).__name__
-
-
-def _load_npy(path: Path, what: str) -> NDArray[Any]:
-    """An .npy array without pickles; InputError naming the file if it cannot be read
-    (truncated, not an .npy, an object array)."""
-    try:
-        return np.asarray(np.load(path, allow_pickle=False))
-    except (ValueError, OSError, EOFError) as err:
-        raise InputError(f"{path}: not a readable .npy {what} ({_first_line(err)})") from None
-
-
-def read_depth(path: Path) -> NDArray[np.float32]:
-    """Depth in metres from `.npy` (float metres) or 16-bit PNG (millimetres)."""
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    if path.suffix.lower() == ".npy":
-        data = _load_npy(path, "depth image")
-        if data.dtype.kind in "iu":
-            raise InputError(
-                f"{path}: .npy depth must be float metres, got {data.dtype} (millimetres? "
-                "divide by 1000 and save as float32, or save a 16-bit .png in millimetres)"
-            )
-        if data.dtype.kind != "f":
-            raise InputError(f"{path}: .npy depth must be float metres, got {data.dtype}")
-        depth = data.astype(np.float32)
-        returns = depth[np.isfinite(depth) & (depth > 0)]
-        if returns.size and float(np.median(returns)) > MAX_DEPTH_M:
-            raise InputError(
-                f"{path}: .npy depth must be float metres, but its median is "
-                f"{float(np.median(returns)):.0f} (> {MAX_DEPTH_M:.0f} m: millimetres?); "
-                "divide by 1000"
-            )
-    elif path.suffix.lower() == ".png":
-        from PIL import Image, UnidentifiedImageError
-
-        try:
-            with Image.open(path) as image:
-                if image.mode not in ("I;16", "I;16B", "I;16L", "I"):
-                    raise InputError(
-                        f"{path}: depth PNG must be 16-bit millimetres, got mode {image.mode}"
-                    )
-                depth = np.asarray(image, dtype=np.float32) * np.float32(0.001)
-        except UnidentifiedImageError:
-            raise InputError(f"{path}: not a readable PNG") from None
-        except (OSError, SyntaxError, ValueError, EOFError) as err:  # truncated, corrupt
-            raise InputError(f"{path}: not a readable PNG ({_first_line(err)})") from None
-    else:
-        raise InputError(
-            f"{path}: expected a .npy (metres) or 16-bit .png (millimetres) depth image"
-        )
-    if depth.ndim != 2:
-        raise InputError(f"{path}: depth must be one (H, W) image, got shape {depth.shape}")
-    if np.isnan(depth).any() or np.isinf(depth).any():
-        raise InputError(f"{path}: depth contains NaN or infinite values")
-    if (depth < 0).any():
-        raise InputError(f"{path}: depth contains negative values")
-    if not (depth > 0).any():
-        raise InputError(f"{path}: depth is all zeros (no returns)")
-    return depth
-
-
-def read_mask(path: Path, shape: tuple[int, ...]) -> NDArray[np.bool_]:
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    if path.suffix.lower() == ".npy":
-        mask = _load_npy(path, "mask")
-        if mask.dtype.kind not in "biuf":
-            raise InputError(f"{path}: mask must be numeric or boolean, got {mask.dtype}")
-    else:
-        from PIL import Image, UnidentifiedImageError
-
-        try:
-            with Image.open(path) as image:
-                mask = np.asarray(image)
-        except UnidentifiedImageError:
-            raise InputError(f"{path}: not a readable mask image") from None
-        except (OSError, SyntaxError, ValueError, EOFError) as err:  # truncated, corrupt
-            raise InputError(f"{path}: not a readable mask image ({_first_line(err)})") from None
-    if mask.ndim == 3:
-        mask = mask[..., 0]
-    if mask.shape != shape:
-        raise InputError(f"{path}: mask is {mask.shape}, depth image is {shape}")
-    return np.asarray(mask) != 0
-
-
-def read_camera(path: Path) -> Any:
-    from pydantic import ValidationError
-
-    from artic.geometry.camera import CameraIntrinsics
-
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    try:
-        return CameraIntrinsics.from_json(path.read_text())
-    except json.JSONDecodeError as err:
-        raise InputError(f"{path}: not JSON ({err.msg})") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"{path}: not a readable JSON file ({_first_line(err)})") from None
-    except ValidationError as err:
-        first = err.errors()[0]
-        field = ".".join(str(p) for p in first["loc"]) or "camera"
-        raise InputError(f"{path}: field {field}: {first['msg']}") from None
 
 
 def predict(
@@ -139,44 +23,9 @@ def predict(
     estimator: str,
     seed: int,
 ) -> dict[str, Any]:
-    """Everything `artic predict` prints, as a dict."""
-    t0 = time.perf_counter()
-    from artic.geometry.camera import reproject
-    from artic.kinematics.predict import Predictor
-    from artic.objects.categories import CATEGORIES
+    """Everything `artic predict` prints, as a dict (`kinematics.predict.predict_image`;
+    the inputs are read by `artifacts.depth_image`)."""
+    started = time.perf_counter()
+    from artic.kinematics.predict import predict_image
 
-    if category not in CATEGORIES:
-        known = ", ".join(sorted(CATEGORIES))
-        raise InputError(f"--category: unknown category '{category}' (available: {known})")
-    depth = read_depth(image)
-    cam = read_camera(camera)
-    if depth.shape != (cam.height, cam.width):
-        raise InputError(
-            f"{camera}: intrinsics are for {cam.width}x{cam.height}, "
-            f"{image} is {depth.shape[1]}x{depth.shape[0]}"
-        )
-    object_mask = read_mask(mask, depth.shape) if mask else None
-    path = model or Path("artifacts/models/mdn") / category / "model.pt"
-    if not path.is_file():
-        raise InputError(
-            f"{path}: no model for {category}; train one with: artic train-mdn category={category}"
-        )
-    predictor = Predictor.load(path, category)
-    reprojected = cam != predictor.camera
-    if object_mask is not None:
-        depth = np.where(object_mask, depth, 0).astype(np.float32)
-        object_mask = None
-    if reprojected:
-        depth = reproject(depth, cam, predictor.camera)
-        if not (depth > 0).any():
-            raise InputError(f"{image}: no pixel lands inside the training camera's view")
-    t1 = time.perf_counter()
-    result = predictor.describe(depth, None, estimator, samples, seed)  # type: ignore[arg-type]
-    t2 = time.perf_counter()
-    result["input"] = {
-        "image": str(image),
-        "model": str(path),
-        "reprojected_to_training_camera": bool(reprojected),
-    }
-    result["timing_s"] = {"load_and_prepare": round(t1 - t0, 4), "predict": round(t2 - t1, 4)}
-    return result
+    return predict_image(image, category, camera, model, mask, samples, estimator, seed, started)

@@ -2,7 +2,7 @@
 appears on the command line.
 
 A stage registers itself: a module of `artic.cli` that defines `STAGE = Stage(...)`
-(`cli/stage_runner.Stage`) is a stage module, and its declaration says everything the
+(`cli/stage.Stage`) is a stage module, and its declaration says everything the
 command line needs (`name`, `help`, `command`, `task_option`, `preset`, `alias`).
 Nothing else lists the stages: `cli/main.py` generates one command per entry, `artic
 pipeline` resolves `cmd:` here, and the runner finds here the stage that wrote an input.
@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 from artic.errors import InputError
 
 if TYPE_CHECKING:
-    from artic.cli.stage_runner import Stage
+    from artic.cli.stage import Stage
 
 log = logging.getLogger("artic")
 

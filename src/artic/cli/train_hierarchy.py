@@ -21,20 +21,19 @@ ground-truth segmentation).
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pydantic import Field
 
-from artic.artifacts.formats import write_csv, write_json
+from artic.artifacts.formats import write_json
+from artic.artifacts.model_card import read_model_info, write_model_card
 from artic.artifacts.scan_dataset import ScanDataset
-from artic.artifacts.timings import data_columns, write_epoch_timings
+from artic.artifacts.timings import write_epoch_timings, write_history
 from artic.artifacts.workdir import WorkDir
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import TrainingStageConfig
-from artic.errors import InputError
 from artic.hierarchy.config import (
     CategoryName,
     CloudDataConfig,
@@ -71,23 +70,18 @@ def _plan(cfg: TrainHierarchyConfig, inputs: dict[str, Path]) -> Plan:
 def _cached(
     ds: ScanDataset, objects: list[int], cfg: TrainHierarchyConfig, cache: Path
 ) -> tuple[list[LabelledGraph], int]:
-    """`load_examples`, stored in the resume folder (specific to the config and input
-    hashes) on first use: a torch file of tensors and plain data (`fit_labeller.encode`),
-    read with `weights_only=True`; a corrupt one is an InputError naming it."""
-    from artic.artifacts.model_file import load_torch_file, save_torch_file
+    """`load_examples`, stored in the resume folder on first use as tensors and plain
+    data (`fit_labeller.encode`)."""
+    from artic.artifacts.resume import cached_torch
     from artic.hierarchy.fit_labeller import LabelledGraph, decode, encode, load_examples
 
-    if cache.is_file():
-        stored = load_torch_file(cache, "checkpoint")
-        try:
-            examples = [LabelledGraph(*(decode(v) for v in e)) for e in stored["examples"]]
-            return examples, int(stored["skipped"])
-        except (KeyError, TypeError, ValueError) as err:
-            raise InputError(f"{cache}: not a readable checkpoint ({err})") from None
-    examples, skipped = load_examples(ds, objects, cfg.data, cfg.graph, cfg.seed)
-    save_torch_file(cache, {"examples": [[encode(v) for v in e] for e in examples],
-                            "skipped": skipped})  # fmt: skip
-    return examples, skipped
+    return cached_torch(
+        cache,
+        lambda: load_examples(ds, objects, cfg.data, cfg.graph, cfg.seed),
+        lambda v: {"examples": [[encode(x) for x in e] for e in v[0]], "skipped": v[1]},
+        lambda s: ([LabelledGraph(*(decode(x) for x in e)) for e in s["examples"]],
+                   int(s["skipped"])),
+    )  # fmt: skip
 
 
 def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
@@ -95,7 +89,7 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     import numpy as np
     import torch
 
-    from artic.artifacts.model_file import load_torch_file, save_torch_file
+    from artic.artifacts.resume import torch_checkpoint
     from artic.hierarchy.fit_labeller import (
         LabellerFitState,
         autoencoder_chamfer,
@@ -128,13 +122,11 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     # the autoencoder shares its encoder with the model
     parts = {"autoencoder": autoencoder, "model": model, "ae_optimizer": ae_optimizer,
              "optimizer": optimizer}  # fmt: skip
-    last = resume / "last.pt"
-    # weights_only; a corrupt checkpoint is an InputError naming it
-    saved = load_torch_file(last, "checkpoint", map_location=device) if last.is_file() else None
+    saved, save = torch_checkpoint(resume / "last.pt", map_location=device)
     state = trainer.restore(parts, saved, LabellerFitState)
 
     def checkpoint(s: LabellerFitState) -> None:
-        save_torch_file(last, trainer.checkpoint(parts, s))
+        save(trainer.checkpoint(parts, s))
 
     sets = part_point_sets(train)
     if p.max_sets is not None and len(sets) > p.max_sets:
@@ -167,13 +159,8 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
         "val_metrics_gt_segmentation": dataclasses.asdict(scores),
     }
     save_labeller(tmp / MODEL, cfg.category.name, model, cfg.graph, meta)
-    columns = data_columns(state.history, ["epoch"])
-    write_csv(tmp / METRICS, columns, [[h[c] for c in columns] for h in state.history])
-    write_csv(
-        tmp / PRETRAIN_METRICS,
-        ["epoch", "chamfer"],
-        [[h[c] for c in ("epoch", "chamfer")] for h in state.pretrain_history],
-    )
+    write_history(tmp / METRICS, state.history)
+    write_history(tmp / PRETRAIN_METRICS, state.pretrain_history, ["epoch", "chamfer"])
     write_epoch_timings(tmp, {"pretrain": state.pretrain_history, "train": state.history})
     info = {k: v for k, v in meta.items() if not k.endswith("_objects")}
     write_json(tmp / "model.json", info | {
@@ -187,21 +174,14 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
 def _finalize(
     cfg: TrainHierarchyConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
-    info = json.loads((work / "model.json").read_text())
+    info = read_model_info(work)
     s = info["val_metrics_gt_segmentation"]
-    card = [
-        f"# Graph labelling network for {cfg.category.name}",
-        "",
-        "Section 4.4: PointNet node encoder (pre-trained as an autoencoder), "
-        f"{cfg.model.num_layers} GraphSAGE layers with edge-collapse pooling, width "
-        f"{cfg.model.hidden}; heads for motion type, edge existence, direction and root. "
-        f"Part graphs: contact threshold {cfg.graph.contact_threshold} m, "
-        f"{cfg.graph.points_per_node} points per part.",
-        "",
-        f"- data: `{info['data']['path']}` (content hash `{info['data']['content_hash'][:16]}`),"
-        f" clouds: {', '.join(info['kinds'])}, ground-truth part ids",
-        f"- objects: {info['n_train_objects']} train, {info['n_val_objects']} validation "
-        "(held out from the training split; the test split is never used)",
+    about = ("Section 4.4: PointNet node encoder (pre-trained as an autoencoder), "
+             f"{cfg.model.num_layers} GraphSAGE layers with edge-collapse pooling, width "
+             f"{cfg.model.hidden}; heads for motion type, edge existence, direction and root. "
+             f"Part graphs: contact threshold {cfg.graph.contact_threshold} m, "
+             f"{cfg.graph.points_per_node} points per part.")  # fmt: skip
+    write_model_card(work, f"Graph labelling network for {cfg.category.name}", about, info, [
         f"- graphs: {info['train_graphs']} train, {info['val_graphs']} validation, "
         f"{info['skipped_clouds']} clouds skipped; {info['uncovered_tree_edges']} of "
         f"{info['tree_edges']} training tree edges are not candidate edges",
@@ -213,11 +193,8 @@ def _finalize(
         f"- validation, ground-truth segmentation (Table 4.2, %): E_type {s['e_type']:.2f}, "
         f"E_exist {s['e_exist']:.2f}, E_dir {s['e_dir']:.2f}, E_root {s['e_root']:.2f}, "
         f"Tree F1 {s['tree_f1']:.2f} over {s['models']} graphs",
-        "- config: see manifest.json; per-epoch metrics: metrics.csv, pretrain.csv; "
-        "test-set scores: `artic evaluate hierarchy`",
-        "",
-    ]
-    (work / "model_card.md").write_text("\n".join(card))
+    ], "metrics.csv, pretrain.csv; test-set scores: `artic evaluate hierarchy`",
+       f", clouds: {', '.join(info['kinds'])}, ground-truth part ids")  # fmt: skip
     return {
         "category": cfg.category.name,
         "train graphs": info["train_graphs"],

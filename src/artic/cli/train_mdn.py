@@ -16,8 +16,9 @@ from pathlib import Path
 from pydantic import Field
 
 from artic.artifacts.depth_dataset import DepthDataset
-from artic.artifacts.formats import write_csv, write_json
-from artic.artifacts.timings import write_epoch_timings
+from artic.artifacts.formats import write_json
+from artic.artifacts.model_card import read_model_info, write_model_card
+from artic.artifacts.timings import write_epoch_timings, write_history
 from artic.artifacts.workdir import WorkDir
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import TrainingStageConfig
@@ -44,7 +45,8 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     """The training run; writes model.pt, metrics.csv into tmp."""
     import torch
 
-    from artic.artifacts.model_file import load_torch_file, save_model_file, save_torch_file
+    from artic.artifacts.model_file import save_model_file
+    from artic.artifacts.resume import torch_checkpoint
     from artic.kinematics.data import load_split
     from artic.kinematics.mdn import KinematicsMDN
     from artic.kinematics.preprocess import InputPipeline
@@ -71,13 +73,11 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     pipeline = InputPipeline(ds.info.camera, m.input_size)
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     parts = {"model": model, "optimizer": optimizer}
-    resume = WorkDir(Path(cfg.out)).resume_dir("train-mdn") / "last.pt"
-    # weights_only; a corrupt checkpoint is an InputError naming it
-    saved = load_torch_file(resume, "checkpoint") if resume.is_file() else None
+    saved, save = torch_checkpoint(WorkDir(Path(cfg.out)).resume_dir("train-mdn") / "last.pt")
     state = trainer.restore(parts, saved, FitState)
 
     def checkpoint(s: FitState) -> None:
-        save_torch_file(resume, trainer.checkpoint(parts, s))
+        save(trainer.checkpoint(parts, s))
 
     state = fit(
         model, optimizer, train, val, codec, pipeline, t, cfg.seed, state, device, checkpoint
@@ -98,8 +98,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     save_model_file(
         tmp / MODEL, MDN_KIND, cfg.category.name, model.hparams, state.best_weights, meta
     )
-    columns = ["epoch", "train_nll", "val_nll", "lr"]
-    write_csv(tmp / METRICS, columns, [[h[c] for c in columns] for h in state.history])
+    write_history(tmp / METRICS, state.history, ["epoch", "train_nll", "val_nll", "lr"])
     write_epoch_timings(tmp, {"train": state.history})
     write_json(tmp / "model.json", {k: v for k, v in meta.items() if k != "codec"} | {
         "hparams": model.hparams, "device": str(device), "epochs_run": state.epoch,
@@ -111,23 +110,16 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
 def _finalize(
     cfg: TrainMdnConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
-    info = json.loads((work / "model.json").read_text())
-    card = [
-        f"# MDN for {cfg.category.name}",
-        "",
-        "Mixture density network of thesis section 3.2 (ResNet-18 backbone, "
-        f"{cfg.model.components} components, width {cfg.model.width}).",
-        "",
-        f"- data: `{info['data']['path']}` (content hash `{info['data']['content_hash'][:16]}`)",
+    info = read_model_info(work)
+    about = ("Mixture density network of thesis section 3.2 (ResNet-18 backbone, "
+             f"{cfg.model.components} components, width {cfg.model.width}).")  # fmt: skip
+    write_model_card(work, f"MDN for {cfg.category.name}", about, info, [
         f"- images: {info['train_images']} train, {info['val_images']} validation",
         f"- epochs run: {info['epochs_run']} (best {info['best_epoch']}, "
         f"early stop: {info['stopped_early']}), device {info['device']}",
         f"- best validation NLL: {info['best_val_nll']:.4f} (standardised label units)",
         f"- predicted columns: {', '.join(info['learned_columns'])}",
-        "- config: see manifest.json; per-epoch metrics: metrics.csv",
-        "",
-    ]
-    (work / "model_card.md").write_text("\n".join(card))
+    ], "metrics.csv")  # fmt: skip
     return {
         "category": cfg.category.name,
         "train images": info["train_images"],

@@ -17,18 +17,17 @@ and `model_card.md` (validation mAP@0.5, clean and noisy).
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import math
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pydantic import Field
 
-from artic.artifacts.formats import write_csv, write_json
+from artic.artifacts.formats import write_json
+from artic.artifacts.model_card import read_model_info, write_model_card
 from artic.artifacts.scan_dataset import ScanDataset
-from artic.artifacts.timings import data_columns, write_epoch_timings
+from artic.artifacts.timings import write_epoch_timings, write_history
 from artic.artifacts.workdir import WorkDir
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import TrainingStageConfig
@@ -67,29 +66,28 @@ def _plan(cfg: TrainSegmenterConfig, inputs: dict[str, Path]) -> Plan:
 def _cached_data(
     ds: ScanDataset, objects: list[int], cfg: TrainSegmenterConfig, cache: Path
 ) -> tuple[SegmentationData, int]:
-    """`load_clouds`, stored in the resume folder on first use (the work area is specific
-    to the config and input hashes, so the cache cannot be stale)."""
+    """`load_clouds`, stored in the resume folder on first use."""
     import numpy as np
 
+    from artic.artifacts.resume import cached_npz
     from artic.hierarchy.fit_segmenter import SegmentationData, load_clouds
 
     names = [f.name for f in dataclasses.fields(SegmentationData)]
-    if cache.is_file():
-        with np.load(cache) as z:
-            return SegmentationData(**{k: z[k] for k in names}), int(z["skipped"])
-    n_points, n_masks = cfg.inference.n_points, cfg.model.n_masks
-    data, skipped = load_clouds(ds, objects, cfg.data, n_points, n_masks, cfg.seed)
-    tmp = cache.with_name(cache.name + ".tmp.npz")
-    np.savez(tmp, skipped=skipped, **{k: getattr(data, k) for k in names})
-    os.replace(tmp, cache)
-    return data, skipped
+
+    def make() -> dict[str, Any]:
+        n_points, n_masks = cfg.inference.n_points, cfg.model.n_masks
+        data, skipped = load_clouds(ds, objects, cfg.data, n_points, n_masks, cfg.seed)
+        return {"skipped": np.asarray(skipped), **{k: getattr(data, k) for k in names}}
+
+    z = cached_npz(cache, make)
+    return SegmentationData(**{k: z[k] for k in names}), int(z["skipped"])
 
 
 def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
     """The training run; writes model.pt, metrics.csv and model.json into tmp."""
     import torch
 
-    from artic.artifacts.model_file import load_torch_file, save_torch_file
+    from artic.artifacts.resume import torch_checkpoint
     from artic.hierarchy.fit_segmenter import fit_segmenter, score_segmenter, training_objects
     from artic.hierarchy.models import save_segmenter
     from artic.hierarchy.segmentation import PartSegmentationNet
@@ -109,13 +107,11 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     model = PartSegmentationNet(cfg.model.network()).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     parts = {"model": model, "optimizer": optimizer}
-    last = resume / "last.pt"
-    # weights_only; a corrupt checkpoint is an InputError naming it
-    saved = load_torch_file(last, "checkpoint", map_location=device) if last.is_file() else None
+    saved, save = torch_checkpoint(resume / "last.pt", map_location=device)
     state = trainer.restore(parts, saved, FitState)
 
     def checkpoint(s: FitState) -> None:
-        save_torch_file(last, trainer.checkpoint(parts, s))
+        save(trainer.checkpoint(parts, s))
 
     state = fit_segmenter(
         model, optimizer, train, val, t, cfg.augment, cfg.seed, state, device, checkpoint
@@ -138,8 +134,7 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
         "val_motion_accuracy": _finite(scores.motion_accuracy),
     }
     save_segmenter(tmp / MODEL, cfg.category.name, model, cfg.inference, meta)
-    columns = data_columns(state.history, ["epoch"])
-    write_csv(tmp / METRICS, columns, [[h[c] for c in columns] for h in state.history])
+    write_history(tmp / METRICS, state.history)
     write_epoch_timings(tmp, {"train": state.history})
     info = {k: v for k, v in meta.items() if not k.endswith("_objects")}
     write_json(tmp / "model.json", info | {
@@ -157,23 +152,16 @@ def _finite(value: float) -> float | None:
 def _finalize(
     cfg: TrainSegmenterConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
-    info = json.loads((work / "model.json").read_text())
+    info = read_model_info(work)
 
     def fmt(value: float | None) -> str:
         return "n/a" if value is None else f"{value:.3f}"
 
     m = cfg.model
-    card = [
-        f"# Part segmenter for {cfg.category.name}",
-        "",
-        "PointNet++ instance segmenter of thesis section 4.3 (after PartNet): "
-        f"{m.n_masks} masks + confidence, motion-type branch; width x{m.width}, "
-        f"{m.norm} norm, input {cfg.inference.n_points} points (FPS).",
-        "",
-        f"- data: `{info['data']['path']}` (content hash `{info['data']['content_hash'][:16]}`),"
-        f" clouds: {', '.join(info['kinds'])}",
-        f"- objects: {info['n_train_objects']} train, {info['n_val_objects']} validation "
-        "(held out from the training split; the test split is never used)",
+    about = ("PointNet++ instance segmenter of thesis section 4.3 (after PartNet): "
+             f"{m.n_masks} masks + confidence, motion-type branch; width x{m.width}, "
+             f"{m.norm} norm, input {cfg.inference.n_points} points (FPS).")  # fmt: skip
+    write_model_card(work, f"Part segmenter for {cfg.category.name}", about, info, [
         f"- clouds: {info['train_clouds']} train, {info['val_clouds']} validation, "
         f"{info['skipped_clouds']} skipped (more parts than masks)",
         f"- epochs run: {info['epochs_run']} (best {info['best_epoch']}, early stop: "
@@ -183,11 +171,8 @@ def _finalize(
         f"- validation mAP@0.5 (on the {cfg.inference.n_points} sampled points): clean "
         f"{fmt(info['val_map_clean'])}, noisy {fmt(info['val_map_noisy'])}; motion-type "
         f"accuracy {fmt(info['val_motion_accuracy'])}",
-        "- config: see manifest.json; per-epoch metrics: metrics.csv; test-set scores: "
-        "`artic evaluate hierarchy`",
-        "",
-    ]
-    (work / "model_card.md").write_text("\n".join(card))
+    ], "metrics.csv; test-set scores: `artic evaluate hierarchy`",
+       f", clouds: {', '.join(info['kinds'])}")  # fmt: skip
     return {
         "category": cfg.category.name,
         "train clouds": info["train_clouds"],

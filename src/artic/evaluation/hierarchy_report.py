@@ -78,6 +78,21 @@ def table_rows(records: list[dict[str, Any]], kinds: tuple[str, ...]) -> list[di
     return rows
 
 
+_HEAD = ["object_id", "pose", "kind", "points", "true_parts", "hidden_parts", "pred_parts",
+         "n_ground_truth", "motion_accuracy"]  # fmt: skip
+_TAIL = [*COUNTS, "tree_precision", "tree_recall", "tree_f1"]
+PER_OBJECT_COLUMNS = [*_HEAD, "segmentation", *_TAIL]
+
+
+def per_object_rows(records: list[dict[str, Any]]) -> list[list[Any]]:
+    """per_object.csv rows (`PER_OBJECT_COLUMNS`): one per scan record and segmentation."""
+    return [
+        [r[c] for c in _HEAD] + [seg] + [r[seg][c] for c in _TAIL]
+        for r in records
+        for seg in SEGMENTATIONS
+    ]
+
+
 def chapter4_report(
     category: str,
     sources: tuple[str, str, str],

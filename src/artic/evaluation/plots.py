@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -104,3 +106,82 @@ def examples_sheet(
         r, c = divmod(i, columns_n)
         sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = tile
     Image.fromarray(sheet).save(path, format="PNG")
+
+
+def bootstrap_curves(path: Path, stats: dict[str, NDArray[np.float64]], title: str) -> None:
+    """Figure 5.2: per init (bootstrap, random), the mean normalised return over seeds
+    with a standard-error band (`curve_stats` rows [update, rollouts, mean, sem])."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(5.0, 3.6))
+    names = {"bootstrap": "ours (motion-planner bootstrap)", "random": "random init"}
+    for init, colour in zip(names, ("C0", "C3"), strict=True):
+        s = stats[init]
+        ax.plot(s[:, 0], s[:, 2], color=colour, lw=1.8, label=names[init])
+        ax.fill_between(s[:, 0], s[:, 2] - s[:, 3], s[:, 2] + s[:, 3], color=colour, alpha=0.25)
+    ax.set_xlabel("policy update")
+    ax.set_ylabel("normalised return")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, format="png", dpi=100, metadata={"Software": None})
+    plt.close(fig)
+
+
+def dmp_fit_plot(
+    path: Path,
+    demos: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+    rollout: tuple[NDArray[np.float64], NDArray[np.float64]],
+    title: str,
+) -> None:
+    """fit-dmp's fit.png: one panel per joint, the demos' (t, q) in grey and the DMP
+    rollout's (t, y) in blue."""
+    plt = _pyplot()
+    n_joints = demos[0][1].shape[1]
+    cols = min(4, n_joints)
+    rows = -(-n_joints // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False)
+    for j, ax in enumerate(axes.ravel()):
+        if j >= n_joints:
+            ax.axis("off")
+            continue
+        for k, (t, q) in enumerate(demos):
+            ax.plot(t, q[:, j], color="0.6", lw=1, label="demos" if k == 0 else None)
+        ax.plot(rollout[0], rollout[1][:, j], color="C0", lw=1.5, label="DMP")
+        ax.set_title(f"joint {j}", fontsize=9)
+        ax.set_xlabel("t (s)", fontsize=8)
+        ax.set_ylabel("q (rad)", fontsize=8)
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, format="png", dpi=90, metadata={"Software": None})
+    plt.close(fig)
+
+
+def scan_preview(
+    path: Path,
+    clouds: Sequence[tuple[str, NDArray[np.float32], NDArray[np.int64] | None]],
+    columns: int,
+    max_points: int,
+) -> None:
+    """Point clouds in pairs (clean, noisy) side by side, `columns` pairs per row, each a
+    3-D scatter of at most about `max_points` points coloured by part id."""
+    plt = _pyplot()
+    pairs = len(clouds) // 2
+    columns = min(columns, pairs)
+    n_rows = math.ceil(pairs / columns)
+    fig = plt.figure(figsize=(5.0 * columns, 2.6 * n_rows), dpi=100)
+    palette = plt.get_cmap("tab10")
+    for i, (title, points, part_id) in enumerate(clouds):
+        step = max(1, len(points) // max_points)
+        p = points[::step]
+        part = (part_id if part_id is not None else np.zeros(len(p)))[::step]
+        ax = fig.add_subplot(n_rows, 2 * columns, i + 1, projection="3d")
+        ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=palette(part % 10), s=1.5, linewidths=0)
+        ax.view_init(elev=20, azim=200)
+        ax.set_box_aspect(tuple(np.ptp(p, axis=0) + 1e-3))
+        ax.set_axis_off()
+        ax.set_title(title, fontsize=7)
+    fig.subplots_adjust(left=0, right=1, bottom=0, top=0.95, wspace=0, hspace=0.1)
+    fig.savefig(path, format="png", metadata={"Software": None})
+    plt.close(fig)

@@ -86,3 +86,34 @@ def scaled(camera: CameraIntrinsics, scale: int) -> CameraIntrinsics:
         width=camera.width * scale,
         height=camera.height * scale,
     )
+
+
+def labelled_sheet(
+    depths: Sequence[NDArray[np.floating]],
+    labels: Sequence[NDArray[np.float64]],
+    label_columns: Sequence[str],
+    dof: int,
+    joint_type: str,
+    camera: CameraIntrinsics,
+    columns: int,
+    tile_px: int,
+) -> NDArray[np.uint8]:
+    """`contact_sheet` of depth images with the axes their label vectors
+    (`objects.labels.label_columns` order) give, small images enlarged (whole multiples)
+    to about `tile_px` wide."""
+    from artic.objects.labels import joint_vector
+
+    col = {c: i for i, c in enumerate(label_columns)}
+    axes = [
+        [
+            (
+                np.array([lab[col[c]] for c in joint_vector(j, "origin")]),
+                np.array([lab[col[c]] for c in joint_vector(j, "direction")]),
+            )
+            for j in range(dof)
+        ]
+        for lab in labels
+    ]
+    kinds = [[joint_type] * dof for _ in depths]
+    scale = max(1, tile_px // camera.width)
+    return contact_sheet(depths, axes, kinds, camera, columns, scale)

@@ -9,10 +9,14 @@ the cloud is downsampled to must match training), kind "part-segmenter".
 
 Both wrap `artic.artifacts.model_file`, which refuses, by name, a file of another kind,
 another category or another format. The loaded network is in evaluation mode, on `device`.
+`find_segmenter` / `find_labeller`: the model a command was given, or by default the
+category's trained one under artifacts/models/; `hierarchy_config`: the `HierarchyConfig`
+the loaded models were trained for.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -25,6 +29,7 @@ if TYPE_CHECKING:
 
     from artic.hierarchy.gnn import GraphLabellingNet, GraphNetConfig
     from artic.hierarchy.graph import PartGraphConfig
+    from artic.hierarchy.infer import HierarchyConfig
     from artic.hierarchy.segmentation import (
         InferenceConfig,
         PartSegmentationNet,
@@ -33,6 +38,11 @@ if TYPE_CHECKING:
 
 SEGMENTER_KIND = "part-segmenter"
 LABELLER_KIND = "hierarchy-gnn"
+#: the trained models of a category, by default: ROOT/<category>/model.pt
+SEGMENTER_ROOT = Path("artifacts/models/segmenter")
+LABELLER_ROOT = Path("artifacts/models/hierarchy")
+DEFAULT_CATEGORY = "storage_furniture"
+_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
 class LoadedSegmenter(NamedTuple):
@@ -152,3 +162,45 @@ def load_labeller(
         raise InputError(f"{path}: labeller does not load ({type(err).__name__}: {err})") from None
     model.to(device).eval()
     return LoadedLabeller(model, graph, str(payload["category"]), dict(payload["meta"]))
+
+
+def _model_path(model: Path | None, category: str | None, root: Path, what: str) -> Path:
+    """`model`, or the category's default model file (InputError when there is none)."""
+    if category is not None and not _NAME.match(category):
+        raise InputError(f"--category: '{category}' is not a category name")
+    name = category or DEFAULT_CATEGORY
+    path = model or root / name / "model.pt"
+    if model is None and not path.is_file():
+        stage = "train-segmenter" if root == SEGMENTER_ROOT else "train-hierarchy"
+        raise InputError(
+            f"{path}: no {what} for {name}; train one with: artic {stage} category={name}"
+        )
+    return path
+
+
+def find_segmenter(model: Path | None, category: str | None) -> tuple[LoadedSegmenter, Path]:
+    """The segmenter at `model` (None: SEGMENTER_ROOT/<category>/model.pt, category
+    default storage_furniture), checked to be of `category` when given, and its path."""
+    path = _model_path(model, category, SEGMENTER_ROOT, "segmenter")
+    return load_segmenter(path, category), path
+
+
+def find_labeller(model: Path | None, category: str | None) -> tuple[LoadedLabeller, Path]:
+    """The graph labelling network at `model` (None: LABELLER_ROOT/<category>/model.pt),
+    as `find_segmenter`, and its path."""
+    path = _model_path(model, category, LABELLER_ROOT, "hierarchy model")
+    return load_labeller(path, category), path
+
+
+def hierarchy_config(
+    segmenter: LoadedSegmenter | None, labeller: LoadedLabeller | None, max_points: int
+) -> HierarchyConfig:
+    """The `HierarchyConfig` the trained models were made for (defaults for the rest)."""
+    from artic.hierarchy.infer import HierarchyConfig
+
+    cfg = HierarchyConfig(max_points=max_points)
+    if segmenter is not None:
+        cfg = HierarchyConfig(segmenter.inference, cfg.graph, cfg.joints, max_points)
+    if labeller is not None:
+        cfg = HierarchyConfig(cfg.segmentation, labeller.graph, cfg.joints, max_points)
+    return cfg

@@ -40,6 +40,19 @@ class DepthSplit:
     def depth_m(self, index: NDArray[np.int64] | slice) -> NDArray[np.float32]:
         return decode_depth(self.depth[index])
 
+    def head(self, n: int | None) -> DepthSplit:
+        """The first `n` images (None: all)."""
+        return DepthSplit(self.depth[:n], self.labels[:n], self.object_id[:n])
+
+    @staticmethod
+    def concat(parts: list[DepthSplit]) -> DepthSplit:
+        """The images of `parts`, in order."""
+        return DepthSplit(
+            np.concatenate([p.depth for p in parts]),
+            np.concatenate([p.labels for p in parts]),
+            np.concatenate([p.object_id for p in parts]),
+        )
+
 
 def load_split(
     ds: DepthDataset, split: Split, val_every: int = 10, max_objects: int | None = None

@@ -186,3 +186,63 @@ class Predictor:
             draws = sample(mix, samples, torch.Generator().manual_seed(seed))
             out["samples"] = self.codec.decode(draws[0].numpy()).tolist()
         return out
+
+
+def predict_image(
+    image: Path,
+    category: str,
+    camera: Path,
+    model: Path | None,
+    mask: Path | None,
+    samples: int,
+    estimator: str,
+    seed: int,
+    started: float,
+) -> dict[str, Any]:
+    """Everything `artic predict` prints, as a dict: `describe` of the depth image
+    `image` (masked by `mask`, reprojected into the training camera when `camera`
+    differs) with the category's model (default artifacts/models/mdn/CATEGORY/model.pt),
+    its inputs and timings since `started` (`time.perf_counter`)."""
+    import time
+
+    from artic.artifacts.depth_image import read_camera, read_depth, read_mask
+    from artic.geometry.camera import reproject
+    from artic.kinematics import ESTIMATORS
+    from artic.objects.categories import CATEGORIES
+
+    if estimator not in ESTIMATORS:
+        raise InputError(f"--estimator: '{estimator}' (available: {', '.join(ESTIMATORS)})")
+    if category not in CATEGORIES:
+        known = ", ".join(sorted(CATEGORIES))
+        raise InputError(f"--category: unknown category '{category}' (available: {known})")
+    depth = read_depth(image)
+    cam = read_camera(camera)
+    if depth.shape != (cam.height, cam.width):
+        raise InputError(
+            f"{camera}: intrinsics are for {cam.width}x{cam.height}, "
+            f"{image} is {depth.shape[1]}x{depth.shape[0]}"
+        )
+    object_mask = read_mask(mask, depth.shape) if mask else None
+    path = model or Path("artifacts/models/mdn") / category / "model.pt"
+    if not path.is_file():
+        raise InputError(
+            f"{path}: no model for {category}; train one with: artic train-mdn category={category}"
+        )
+    predictor = Predictor.load(path, category)
+    reprojected = cam != predictor.camera
+    if object_mask is not None:
+        depth = np.where(object_mask, depth, 0).astype(np.float32)
+    if reprojected:
+        depth = reproject(depth, cam, predictor.camera)
+        if not (depth > 0).any():
+            raise InputError(f"{image}: no pixel lands inside the training camera's view")
+    t1 = time.perf_counter()
+    result = predictor.describe(depth, None, estimator, samples, seed)  # type: ignore[arg-type]
+    t2 = time.perf_counter()
+    result["input"] = {
+        "image": str(image),
+        "model": str(path),
+        "reprojected_to_training_camera": bool(reprojected),
+    }
+    result["timing_s"] = {"load_and_prepare": round(t1 - started, 4), "predict": round(t2 - t1, 4)}
+    return result

@@ -1,7 +1,7 @@
 """A finished policy-search output folder (`artic policy-search`, docs/formats.md) read
 back: its validated config, its learning curve and each seed's final policy as an
-`ActionFn`; and the statistics over seeds of Figure 5.2 (`curve_stats`,
-`bootstrap_verdict`)."""
+`ActionFn`; and the config (`EvaluateBootstrapConfig`), the two runs (`open_runs`) and
+the statistics over seeds (`curve_stats`, `bootstrap_verdict`) of Figure 5.2."""
 
 from __future__ import annotations
 
@@ -12,10 +12,36 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import Field
 
 from artic.artifacts.manifest import read_manifest, verify_file
+from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
+from artic.evaluation.bootstrap_report import INITS
 from artic.learning.search import CURVE, CURVE_COLUMNS, PolicySearchConfig, algorithm_of, seed_dir
+
+
+class TaskName(Strict):
+    """The task config group (`conf/common/task`); only its name is used: the policies
+    are rolled out in the task config their policy-search run used."""
+
+    model_config = Strict.model_config | {"extra": "ignore"}
+    name: str = Field(description="task name: drawer, microwave, tball")
+
+
+class EvaluateBootstrapConfig(StageConfig):
+    """`artic evaluate bootstrap` (Figure 5.2): the two policy-search runs of a task."""
+
+    task: TaskName
+    bootstrap: str = Field(description="policy-search output with init=bootstrap")
+    random: str = Field(description="policy-search output with init=random")
+    episodes: int = Field(100, gt=0, description="evaluation rollouts per init")
+    reach_fraction: float = Field(0.9, gt=0, le=1, description="fraction of the final return")
+    reach_within: int = Field(50, ge=0, description="updates to reach it within (target)")
+
+    def episodes_of(self, n_seeds: int, seed: int) -> list[int]:
+        """The evaluation episodes seed `seed` of a run of `n_seeds` seeds rolls out."""
+        return [j for j in range(self.episodes) if j % n_seeds == seed]
 
 
 @dataclass(frozen=True)
@@ -73,6 +99,72 @@ class SearchOutput:
         except (KeyError, TypeError, ValueError, RuntimeError) as err:
             raise InputError(f"{path}: policy does not load ({type(err).__name__})") from None
         return gaussian_actor(policy)
+
+
+def open_runs(task: str, folders: dict[str, Path]) -> dict[str, SearchOutput]:
+    """The policy-search runs of each init (`INITS`), checked to be of that init, of task
+    `task` and of one task config."""
+    runs = {init: SearchOutput.open(folders[init]) for init in INITS}
+    for init, run in runs.items():
+        if run.cfg.init != init:
+            raise InputError(f"{init}: {run.folder} was run with init={run.cfg.init}")
+        if run.cfg.task.name != task:
+            raise InputError(
+                f"{init}: {run.folder} is of task '{run.cfg.task.name}', expected '{task}'"
+            )
+    if runs["bootstrap"].cfg.task != runs["random"].cfg.task:
+        raise InputError("random: its task config differs from the bootstrap run's")
+    return runs
+
+
+def run_summary(
+    cfg: PolicySearchConfig, inputs: dict[str, str], table: np.ndarray
+) -> tuple[dict[str, Any], dict[str, float | int | str]]:
+    """summary.json of a policy-search run and its statistics, from its learning curve
+    rows (`CURVE_COLUMNS` + seconds, as floats): its settings, the normalised return (mean
+    and standard error over seeds) at update 0 and at the last, the final success rate."""
+    dmp = algorithm_of(cfg) == "pi2cma"
+    last = table[table[:, 1] == cfg.updates]
+    first = table[table[:, 1] == 0]
+    seconds = table[table[:, 1] > 0, 7]
+    summary = {
+        "task": cfg.task.name,
+        "init": cfg.init,
+        "algorithm": algorithm_of(cfg),
+        "policy": "dmp" if dmp else "gaussian_mlp",
+        "seeds": cfg.seeds,
+        "updates": cfg.updates,
+        "rollouts_per_update": cfg.rollouts,
+        "eval_rollouts": cfg.eval_rollouts,
+        "initial_normalised_return": _mean_sem(first[:, 4]),
+        "final_normalised_return": _mean_sem(last[:, 4]),
+        "final_success_rate": float(last[:, 5].mean()),
+        "normalised_return": "1 - R / R_idle; R: return of the mean policy from fixed starts, "
+        "R_idle: return of a robot that keeps still from the same starts",
+        "random_init": (
+            "DMP: y0 = goal = robot start, weights ~ N(0, random_weight_std^2)"
+            if dmp
+            else "MLP: PyTorch default init, output layer x0.01 (mean action ~ 0)"
+        ),
+        "inputs": inputs,
+        "final_policies": [
+            f"{seed_dir(i)}/{'dmp.json' if dmp else 'policy.pt'}" for i in range(cfg.seeds)
+        ],
+    }
+    return summary, {
+        "task": cfg.task.name,
+        "init": cfg.init,
+        "algorithm": algorithm_of(cfg),
+        "seeds": cfg.seeds,
+        "final normalised return": round(float(last[:, 4].mean()), 4),
+        "final success rate": round(float(last[:, 5].mean()), 3),
+        "s per update": round(float(seconds.mean()), 3) if len(seconds) else 0.0,
+    }
+
+
+def _mean_sem(x: np.ndarray) -> dict[str, float]:
+    sem = float(x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else 0.0
+    return {"mean": float(x.mean()), "sem": sem}
 
 
 def curve_stats(curve: np.ndarray) -> np.ndarray:

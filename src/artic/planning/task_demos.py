@@ -200,3 +200,69 @@ def execute(world: TaskWorld, demo: Demo, cfg: PlanDemosConfig) -> dict[str, Any
         "max_tracking_error_rad": round(tracking, 6),
         "steps": steps,
     }
+
+
+def demos_index(
+    cfg: PlanDemosConfig, records: list[dict[str, Any]], model: dict[str, Any], n_joints: int
+) -> dict[str, Any]:
+    """demos.json (docs/formats.md, Chapter 5): the task, the kinematic model's record and
+    every demo's record (deterministic: the planning times are in `timings_record`)."""
+    return {
+        "task": cfg.task.name,
+        "n_requested": cfg.demos.count,
+        "control_dt": cfg.task.control_dt,
+        "horizon": cfg.task.horizon,
+        "goal": list(cfg.task.goal),
+        "n_joints": n_joints,
+        "dof_object": len(cfg.task.goal),
+        "kinematic_model": model,
+        "planner": cfg.planner.name,
+        "demos": records,
+    }
+
+
+def timings_record(
+    cfg: PlanDemosConfig, records: list[dict[str, Any]], times: list[float]
+) -> dict[str, Any]:
+    """timings.json: the wall-clock planning time of each demo, and their median."""
+    return {
+        "task": cfg.task.name,
+        "median_planning_time_s": round(float(np.median(times)), 4),
+        "demos": [
+            {"index": r["index"], "status": r["status"], "planning_time_s": t}
+            for r, t in zip(records, times, strict=True)
+        ],
+    }
+
+
+def demo_stats(
+    cfg: PlanDemosConfig,
+    records: list[dict[str, Any]],
+    times: list[float],
+    model_record: dict[str, Any],
+) -> dict[str, float | int | str]:
+    """plan-demos' run statistics from its demo records (`plan_one`), their planning
+    times and the kinematic model's record."""
+    ok = [r for r in records if r["status"] == "ok"]
+    stats: dict[str, float | int | str] = {
+        "task": cfg.task.name,
+        "kinematic model": cfg.model.source,
+        "demos planned": len(ok),
+        "demos failed": len(records) - len(ok),
+        "median planning time (s)": float(np.median(times)),
+        "median steps": int(np.median([r["steps"] for r in ok])) if ok else 0,
+    }
+    if cfg.model.source == "predicted":
+        unit = model_record["configuration_error_unit"]
+        stats["MDN"] = model_record["mdn"]
+        for key, name in (
+            ("axis_position_error_cm", "axis position error (cm)"),
+            ("axis_direction_error_deg", "axis direction error (deg)"),
+            ("configuration_error", f"configuration error ({unit})"),
+        ):
+            stats[name] = round(float(np.mean(model_record[key])), 4)
+    executed = [r["executed"] for r in ok if "executed" in r]
+    if executed:
+        stats["executed successes"] = sum(e["success"] for e in executed)
+        stats["median executed goal error"] = float(np.median([e["goal_error"] for e in executed]))
+    return stats
