@@ -21,7 +21,6 @@ from artic.artifacts.manifest import (
 from artic.artifacts.object_dataset import ObjectDataset
 from artic.artifacts.ply import read_ply
 from artic.cli import render_scan
-from artic.cli.main import STAGE_MODULES
 from artic.cli.render_scan import STAGE, scan_file
 from artic.cli.stage_runner import resolved_config, run_stage
 from artic.config.compose import validate
@@ -169,9 +168,6 @@ def test_poses_and_motion_types_come_from_hierarchy_files_when_present(tiny_obje
     assert object_motion_types(ds, 3, build(ds.spec(3))).tolist() == [0, 1, 0]
 
 
-@pytest.mark.skipif(
-    "render-scan" not in STAGE_MODULES, reason="render-scan is not registered in cli/main.py"
-)
 def test_command_line_render_depth_render_scan(tiny_scans, tiny_objects, tmp_path):
     out = tmp_path / "cli"
     code, _, err = run_cli("render-depth", *SMALL, f"dataset={tiny_objects}", f"out={out}")
