@@ -78,6 +78,7 @@ def examples_sheet(
     from PIL import Image
 
     from artic.evaluation.preview import colourise, draw_axes, scaled
+    from artic.objects.labels import joint_vector
 
     col = {c: i for i, c in enumerate(columns)}
     scale = max(1, 256 // predictor.camera.width)
@@ -86,8 +87,8 @@ def examples_sheet(
     def axes(label: NDArray[np.float64]) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
         return [
             (
-                np.array([label[col[f"j{j}_origin_{a}"]] for a in "xyz"]),
-                np.array([label[col[f"j{j}_direction_{a}"]] for a in "xyz"]),
+                np.array([label[col[c]] for c in joint_vector(j, "origin")]),
+                np.array([label[col[c]] for c in joint_vector(j, "direction")]),
             )
             for j in range(predictor.dof)
         ]

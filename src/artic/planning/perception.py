@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from artic.geometry.transforms import invert, make_transform, rot_z, yaw_of
+from artic.objects.labels import joint_column, joint_vector
 from artic.objects.model import ArticulatedObject
 from artic.objects.spec import GeometryRanges, ObjectSpec, Pose, PoseRanges
 
@@ -188,15 +189,15 @@ def labels_to_model(
         joint = joints[k]
         parent = rest[obj.link_index(joint.parent)]
         origin = joint.origin.copy()
-        point = np.array([labels[f"j{j}_origin_{a}"] for a in "xyz"], dtype=np.float64)
+        point = np.array([labels[c] for c in joint_vector(j, "origin")], dtype=np.float64)
         origin[:3, 3] = (invert(parent) @ np.append(point, 1.0))[:3]
-        direction = np.array([labels[f"j{j}_direction_{a}"] for a in "xyz"], dtype=np.float64)
+        direction = np.array([labels[c] for c in joint_vector(j, "direction")], dtype=np.float64)
         norm = float(np.linalg.norm(direction))
         axis = joint.axis
         if norm > 1e-9:  # a degenerate prediction keeps the built axis
             axis = (parent @ origin)[:3, :3].T @ (direction / norm)
         moved = dataclasses.replace(joint, axis=axis, origin=origin)
-        shift = float(labels[f"j{j}_q"]) - float(start[j])
+        shift = float(labels[joint_column(j, "q")]) - float(start[j])
         joints[k] = dataclasses.replace(moved, origin=origin @ moved.motion(shift))
     return dataclasses.replace(obj, joints=tuple(joints))
 
@@ -210,14 +211,13 @@ def axis_errors(
     position, direction, configuration = [], [], []
     scale = np.degrees(1.0) if joint_type == "revolute" else 100.0
     for j in range(dof):
-        o = [f"j{j}_origin_{a}" for a in "xyz"]
-        d = [f"j{j}_direction_{a}" for a in "xyz"]
+        o, d, q = joint_vector(j, "origin"), joint_vector(j, "direction"), joint_column(j, "q")
         a = np.array([predicted[c] for c in d])
         b = np.array([true[c] for c in d])
         cos = a @ b / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-12)
         position.append(100.0 * float(np.linalg.norm([predicted[c] - true[c] for c in o])))
         direction.append(float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
-        configuration.append(scale * abs(predicted[f"j{j}_q"] - true[f"j{j}_q"]))
+        configuration.append(scale * abs(predicted[q] - true[q]))
     return {
         "axis_position_error_cm": position,
         "axis_direction_error_deg": direction,
