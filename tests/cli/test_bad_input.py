@@ -600,13 +600,13 @@ def _one_internal_line(stderr: str) -> Path:
 def test_internal_error_outside_a_stage_goes_to_a_tmp_log(tmp_path, monkeypatch):
     import tempfile
 
-    import artic.cli.predict
+    import artic.kinematics.predict
 
     def boom(*args, **kwargs):
         raise RuntimeError("boom\nsecond line")
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    monkeypatch.setattr(artic.cli.predict, "predict", boom)
+    monkeypatch.setattr(artic.kinematics.predict, "predict_image", boom)
     code, _, stderr = run_cli("predict", "x.npy", "--category", "microwave", "--camera", "c")
     assert code == 1
     log = _one_internal_line(stderr)

@@ -156,10 +156,12 @@ def predict(
     Example: artic predict depth.png --category microwave --camera kinect.json --samples 100
     """
     import json
+    import time
 
-    from artic.cli.predict import predict as run
+    started = time.perf_counter()
+    from artic.kinematics.predict import predict_image
 
-    result = run(image, category, camera, model, mask, samples, estimator, seed)
+    result = predict_image(image, category, camera, model, mask, samples, estimator, seed, started)
     typer.echo(json.dumps(result, indent=2))
 
 
