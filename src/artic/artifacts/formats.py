@@ -54,6 +54,25 @@ def read_npz(path: Path, keys: Sequence[str] = ()) -> dict[str, NDArray[Any]]:
     return arrays
 
 
+def read_json(path: Path) -> Any:
+    """The JSON document in `path`; InputError naming the file if it cannot be read or
+    parsed (the library reads its JSON files through this, never by itself)."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        text = str(err).strip().splitlines()
+        raise InputError(f"{path}: not a readable JSON file ({text[0] if text else err})") from None
+
+
+def read_csv(path: Path) -> list[list[str]]:
+    """The rows of a CSV file, header first; InputError naming the file if unreadable."""
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            return list(csv.reader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as err:
+        raise InputError(f"{path}: not a readable CSV file ({err})") from None
+
+
 def write_json(path: Path, value: Any) -> None:
     """Pretty JSON with sorted keys and a final newline (deterministic)."""
     path.write_text(json.dumps(value, indent=2, sort_keys=True, allow_nan=False) + "\n")

@@ -21,9 +21,9 @@ import csv
 import json
 from pathlib import Path
 
+from artic.artifacts.demo_dataset import load_demos
 from artic.artifacts.formats import write_csv, write_json
 from artic.cli.stage_runner import Plan, Stage
-from artic.planning.demo_files import load_demos
 from artic.policies.dmp import DMP_JSON, DMPFile, fit_dmp, rollout_dmp
 from artic.policies.dmp_fit import FIT_COLUMNS, FitDmpConfig, fit_stats, reproduction_rows
 

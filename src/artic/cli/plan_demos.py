@@ -25,10 +25,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from artic.artifacts.chunk_parts import take_json
+from artic.artifacts.demo_dataset import DEMOS_JSON, demo_name, write_demo
 from artic.artifacts.formats import write_json
 from artic.cli.stage_runner import Plan, Stage
 from artic.errors import InputError
-from artic.planning.demo_files import DEMOS_JSON, demo_name, write_demo
 from artic.planning.models import ModelConfig
 from artic.planning.task_demos import (
     PlanDemosConfig,

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from artic.artifacts.chunk_parts import take_csv_rows
+from artic.artifacts.demo_dataset import load_demo_pairs
 from artic.artifacts.formats import write_csv, write_json
 from artic.artifacts.workers import available_cpus
 from artic.cli.stage_runner import Plan, Stage
@@ -38,7 +39,6 @@ from artic.learning.search import (
 )
 from artic.learning.search import Evaluator as _Evaluator  # noqa: F401  (tests patch its row)
 from artic.learning.search_output import run_summary
-from artic.planning.demo_files import load_demo_pairs
 
 
 def _input_paths(cfg: PolicySearchConfig) -> dict[str, Path]:

@@ -5,8 +5,6 @@ the statistics over seeds (`curve_stats`, `bootstrap_verdict`) of Figure 5.2."""
 
 from __future__ import annotations
 
-import csv
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -14,6 +12,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
+from artic.artifacts.formats import read_csv, read_json
 from artic.artifacts.manifest import read_manifest, verify_file
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
@@ -66,8 +65,7 @@ class SearchOutput:
 
     def curve(self) -> np.ndarray:
         """(rows, 7) learning_curve.csv as floats (columns `CURVE_COLUMNS`)."""
-        with (self.folder / CURVE).open(newline="") as f:
-            rows = list(csv.reader(f))
+        rows = read_csv(self.folder / CURVE)
         if not rows or rows[0] != CURVE_COLUMNS:
             raise InputError(f"{self.folder / CURVE}: expected the columns {CURVE_COLUMNS}")
         return np.array([[float(v) for v in r] for r in rows[1:]], dtype=np.float64).reshape(
@@ -82,7 +80,7 @@ class SearchOutput:
             from artic.policies.dmp import DMPFile
 
             path = verify_file(self.folder, self.manifest, f"{seed_dir(index)}/dmp.json")
-            dmp = DMPFile.from_json_dict(json.loads(path.read_text()))
+            dmp = DMPFile.from_json_dict(read_json(path))
             k_p = self.cfg.pi2cma_policy.k_p
             return dmp_actor(dmp.params, dmp.cfg, task.control_dt, task.horizon, k_p)
         from artic.artifacts.model_file import load_torch_file

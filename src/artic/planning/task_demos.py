@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import Field, model_validator
 
+from artic.artifacts.demo_dataset import demo_name
 from artic.config.schemas import StageConfig, Strict
-from artic.planning.demo_files import demo_name
 from artic.planning.demos import (
     DemoProblem,
     GraspSettings,

@@ -25,7 +25,6 @@ solution of Eq. 2.6. The DMP starts at rest (z = 0) at y0.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Self
@@ -369,14 +368,12 @@ class DMPFile:
 
 def read_dmp(folder: Path) -> DMPFile:
     """The DMPs of a fit-dmp output folder (checked against its manifest)."""
+    from artic.artifacts.formats import read_json
     from artic.artifacts.manifest import read_manifest, verify_file
 
     manifest = read_manifest(folder, expected_stage="fit-dmp")
     path = verify_file(folder, manifest, DMP_JSON)
-    try:
-        data = json.loads(path.read_text())
-    except ValueError as err:
-        raise InputError(f"{path}: not JSON ({err})") from None
+    data = read_json(path)
     try:
         return DMPFile.from_json_dict(data)
     except InputError as err:

@@ -39,7 +39,7 @@ class FitDmpConfig(StageConfig):
 
 
 class DemoLike(Protocol):
-    """A demonstration as fit-dmp reads it (`artic.planning.demo_files.Demo`)."""
+    """A demonstration as fit-dmp reads it (`artic.artifacts.demo_dataset.Demo`)."""
 
     @property
     def index(self) -> int: ...

@@ -6,20 +6,33 @@ naming the file."""
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from artic.artifacts.formats import read_npz, write_npz
+from artic.artifacts.formats import read_json, read_npz, write_npz
 from artic.artifacts.manifest import read_manifest, verify_file
 from artic.errors import InputError
 
-if TYPE_CHECKING:
-    from artic.planning.demos import Demo as PlannedDemo
+
+class DemoArrays(Protocol):
+    """What a planned demo holds (`artic.planning.demos.Demo`): (T,) times and (T, .)
+    robot positions and velocities, object configurations and end-effector poses."""
+
+    @property
+    def t(self) -> NDArray[np.float64]: ...
+    @property
+    def q_robot(self) -> NDArray[np.float64]: ...
+    @property
+    def qd_robot(self) -> NDArray[np.float64]: ...
+    @property
+    def q_object(self) -> NDArray[np.float64]: ...
+    @property
+    def ee_pose(self) -> NDArray[np.float64]: ...
+
 
 DEMOS_JSON = "demos.json"
 N_JOINTS = 7  # the KUKA iiwa's
@@ -29,7 +42,7 @@ def demo_name(index: int) -> str:
     return f"demo_{index:03d}.npz"
 
 
-def write_demo(path: Path, demo: PlannedDemo) -> None:
+def write_demo(path: Path, demo: DemoArrays) -> None:
     """One planned demo as `demo_###.npz`."""
     write_npz(path, {"t": demo.t, "q_robot": demo.q_robot, "qd_robot": demo.qd_robot,
                      "q_object": demo.q_object, "ee_pose": demo.ee_pose})  # fmt: skip
@@ -59,7 +72,7 @@ def load_demos(folder: Path, task: str, max_demos: int | None = None) -> DemoSet
     manifest = read_manifest(folder, expected_stage="plan-demos")
     index_path = verify_file(folder, manifest, DEMOS_JSON)
     try:
-        info = json.loads(index_path.read_text())
+        info = read_json(index_path)
         listed = list(info["demos"])
         found_task, dt, n_joints = str(info["task"]), float(info["control_dt"]), info["n_joints"]
     except (ValueError, KeyError, TypeError) as err:
@@ -106,7 +119,7 @@ def load_demo_pairs(folder: Path, task: str, dof: int) -> tuple[np.ndarray, np.n
     manifest = read_manifest(folder, expected_stage="plan-demos")
     index = verify_file(folder, manifest, DEMOS_JSON)
     try:
-        info = json.loads(index.read_text())
+        info = read_json(index)
         found, entries = str(info["task"]), list(info["demos"])
     except (ValueError, KeyError, TypeError) as err:
         raise InputError(f"{index}: malformed demos index ({err})") from None
