@@ -57,9 +57,9 @@ CONFIGURATIONS = 16  # images per object, as render-depth
 def backend_benchmark(scenes_n: int, repeats: int, tmp: Path) -> list[dict[str, object]]:
     """Both backends on the same work as `render-depth`: each object at 16 configurations."""
     from artic.artifacts.object_dataset import ObjectDataset
-    from artic.cli.render_depth import latin_hypercube
     from artic.geometry.camera import CameraIntrinsics
     from artic.objects.categories import build
+    from artic.objects.tree import latin_hypercube
     from artic.render.backend import make_backend
 
     scenes: list[tuple[ArticulatedObject, np.ndarray, Path]] = []  # object, (16, dof) qs, URDF
@@ -183,7 +183,7 @@ def network_benchmark(tmp: Path) -> list[dict[str, object]]:
     import torch
 
     from artic.artifacts.model_file import save_model_file
-    from artic.cli.stage_runner import available_cpus
+    from artic.artifacts.workers import available_cpus
     from artic.geometry.camera import CameraIntrinsics
     from artic.kinematics.mdn import KinematicsMDN, mdn_nll
     from artic.kinematics.preprocess import InputPipeline
@@ -285,7 +285,7 @@ def hierarchy_benchmark(tmp: Path, points: int = 20_000) -> dict[str, object]:
     import torch
 
     from artic.artifacts.ply import write_ply
-    from artic.cli.stage_runner import available_cpus
+    from artic.artifacts.workers import available_cpus
     from artic.hierarchy.gnn import GraphLabellingNet
     from artic.hierarchy.graph import PartGraphConfig
     from artic.hierarchy.infer import HierarchyConfig, build_hierarchy, infer_hierarchy
