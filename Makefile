@@ -5,16 +5,16 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 export PYTHONHASHSEED := 0
 
-.PHONY: setup demo smoke test test-slow bench lint clean
+.PHONY: setup demo smoke test wheel-check test-slow bench lint clean
 
 setup: $(STAMP)  ## create .venv and install artic with its dependencies
 
-$(STAMP): pyproject.toml scripts/system-deps.sh
+$(STAMP): pyproject.toml constraints.txt scripts/system-deps.sh
 	./scripts/system-deps.sh
 	@$(PYTHON) -c 'import sys; assert sys.version_info[:2] == (3, 11), "artic needs Python 3.11 (PyBullet wheels)"'
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[dev]'
+	$(BIN)/python -m pip install -q -c constraints.txt -e '.[dev]'
 	touch $(STAMP)
 
 demo: setup  ## run the smoke pipeline on tiny defaults and show where its outputs are
@@ -30,8 +30,12 @@ demo: setup  ## run the smoke pipeline on tiny defaults and show where its outpu
 
 smoke: demo
 
-test: setup  ## the test suite (without slow tests)
+test: setup  ## the wheel check, then the test suite (without slow tests)
+	$(MAKE) --no-print-directory wheel-check
 	$(BIN)/python -m pytest -n 2 -q
+
+wheel-check: setup  ## build the wheel, install it in a fresh venv outside the checkout, run it there
+	./scripts/wheel-check.sh $(PYTHON)
 
 test-slow: setup
 	$(BIN)/python -m pytest -n 2 -q -m slow
@@ -45,4 +49,4 @@ lint: setup
 	$(BIN)/mypy
 
 clean:
-	rm -rf artifacts/smoke .pytest_cache .mypy_cache .ruff_cache
+	rm -rf artifacts/smoke .pytest_cache .mypy_cache .ruff_cache build dist

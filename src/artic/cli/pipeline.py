@@ -19,18 +19,19 @@ from rich.console import Console
 from rich.table import Table
 
 from artic.cli.registry import load_stage, resolve, say_alias, stage_entries
-from artic.config.compose import conf_dir
+from artic.config.compose import stages_dir
 from artic.config.pipeline_file import Pipeline, norm, parse_pipeline
 from artic.config.pipeline_file import parse_vars as parse_vars
 from artic.errors import InputError
 
 
 def pipeline_path(name: str) -> Path:
-    """`stages/NAME.yaml` beside conf/, or NAME itself when it is a file."""
+    """`stages/NAME.yaml` (the shipped pipelines, or those beside `$ARTIC_CONF`), or NAME
+    itself when it is a file."""
     direct = Path(name)
     if direct.suffix in (".yaml", ".yml") and direct.is_file():
         return direct
-    path = conf_dir().parent / "stages" / f"{name}.yaml"
+    path = stages_dir() / f"{name}.yaml"
     if not path.is_file():
         known = sorted(p.stem for p in path.parent.glob("*.yaml"))
         raise InputError(f"pipeline '{name}': no {path} (known: {', '.join(known)})")

@@ -22,13 +22,34 @@ M = TypeVar("M", bound=BaseModel)
 _RESOLVERS_REGISTERED = False
 
 
+def _data_root() -> Path:
+    """Where the shipped `conf/` and `stages/` are: inside the installed package (a wheel
+    copies them to `artic/conf/` and `artic/stages/` at build time), else the top level of
+    the repository (an editable install or a checkout)."""
+    from importlib import resources
+
+    package = resources.files("artic")
+    if isinstance(package, Path) and (package / "conf" / "common").is_dir():
+        return package
+    return Path(__file__).resolve().parents[3]
+
+
 def conf_dir() -> Path:
-    """The `conf/` folder: `$ARTIC_CONF` if set, else the repository's `conf/`."""
+    """The `conf/` folder: `$ARTIC_CONF` if set, else the shipped `conf/`."""
     env = os.environ.get("ARTIC_CONF")
-    path = Path(env) if env else Path(__file__).resolve().parents[3] / "conf"
+    path = Path(env) if env else _data_root() / "conf"
     if not (path / "common").is_dir():
         raise InputError(f"{path}: not an artic conf/ folder (set ARTIC_CONF)")
     return path
+
+
+def stages_dir() -> Path:
+    """The `stages/` folder of pipeline files: the one beside `$ARTIC_CONF` if that
+    folder has one, else the shipped `stages/`."""
+    env = os.environ.get("ARTIC_CONF")
+    if env and (Path(env).parent / "stages").is_dir():
+        return Path(env).parent / "stages"
+    return _data_root() / "stages"
 
 
 def _register_resolvers() -> None:
