@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from artic.artifacts.scan_outputs import OutputFolder
-from artic.cli.main import STAGE_MODULES
+from artic.cli.registry import stage_entries
 from artic.hierarchy.gnn import GraphLabellingNet, GraphNetConfig
 from artic.hierarchy.graph import PartGraphConfig
 from artic.hierarchy.models import save_labeller, save_segmenter
@@ -77,7 +77,7 @@ def _rows(path: Path) -> list[dict[str, str]]:
 
 
 def test_tables_4_1_and_4_2_are_written(report):
-    assert STAGE_MODULES["evaluate-hierarchy"] == "artic.cli.evaluate_hierarchy"
+    assert stage_entries()["evaluate-hierarchy"].module == "artic.cli.evaluate_hierarchy"
     summary = _rows(report / "summary.csv")
     assert [(r["kind"], r["segmentation"]) for r in summary] == [
         ("clean", "gt"),

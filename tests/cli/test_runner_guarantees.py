@@ -14,7 +14,7 @@ from test_stages import tree_bytes
 
 from artic.artifacts import workers
 from artic.cli import stage_runner
-from artic.cli.main import load_stage
+from artic.cli.registry import load_stage
 from artic.errors import InputError
 from cli_runner import run_cli
 

@@ -168,8 +168,8 @@ def test_bad_inputs_exit_2(tiny: TinyScans, tmp_path: Path) -> None:
 @pytest.mark.parametrize("pipeline", ["ch4", "ch4_paper"])
 def test_chapter_4_pipelines_compose(pipeline: str) -> None:
     """The training stages of stages/ch4*.yaml resolve to valid configs (no run)."""
-    from artic.cli.main import load_stage, stage_command
     from artic.cli.pipeline import load_pipeline
+    from artic.cli.registry import load_stage, resolve
     from artic.cli.stage_runner import resolved_config
     from artic.config.compose import validate
 
@@ -178,6 +178,6 @@ def test_chapter_4_pipelines_compose(pipeline: str) -> None:
     commands = [s.cmd for s in spec.stages.values()]
     assert commands.count("train-segmenter") == commands.count("train-hierarchy") == 3
     for stage in (s for s in spec.stages.values() if s.cmd.startswith("train-")):
-        runner = load_stage(stage_command(stage.cmd, stage.overrides))
+        runner = load_stage(resolve(stage.cmd, list(stage.overrides)).name)
         cfg = validate(runner.schema, resolved_config(runner, list(stage.overrides)))
         assert Path(cfg.out).as_posix() == stage.outs[0]

@@ -17,12 +17,6 @@ TIMINGS_CSV = "timings.csv"
 SECONDS = "seconds"
 
 
-def data_columns(history: Sequence[Mapping[str, Any]], default: Sequence[str]) -> list[str]:
-    """The columns of a per-epoch history without its wall-clock `seconds`."""
-    columns = list(history[0]) if history else list(default)
-    return [c for c in columns if c != SECONDS]
-
-
 def write_epoch_timings(folder: Path, phases: Mapping[str, Sequence[Mapping[str, Any]]]) -> None:
     """`timings.csv` (phase, epoch, seconds): one row per epoch of each phase's history."""
     rows = [[phase, h["epoch"], h[SECONDS]] for phase, hist in phases.items() for h in hist]
@@ -34,5 +28,6 @@ def write_history(
 ) -> None:
     """A per-epoch history as CSV (metrics.csv): `columns` of each epoch, by default every
     column but the wall-clock `seconds` (those go to `write_epoch_timings`)."""
-    columns = list(columns) if columns is not None else data_columns(history, ["epoch"])
+    if columns is None:
+        columns = [c for c in (history[0] if history else ["epoch"]) if c != SECONDS]
     write_csv(path, columns, [[h[c] for c in columns] for h in history])

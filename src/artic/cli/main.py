@@ -58,16 +58,6 @@ def _with_task(overrides: list[str] | None, task: str | None) -> list[str]:
     return [*(overrides or []), *([f"task={task}"] if task else [])]
 
 
-def stage_command(command: str, overrides: list[str] | None) -> str:
-    """The stage a command runs (`render-depth render=scan` runs render-scan)."""
-    return resolve(command, overrides).name
-
-
-#: stage name -> module defining its STAGE (read from the registry)
-STAGE_MODULES: dict[str, str] = {name: e.module for name, e in stage_entries().items()}
-__all__ = ["STAGE_MODULES", "app", "load_stage", "main", "stage_command"]
-
-
 def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, force: bool) -> None:
     """Run the stage behind `artic COMMAND OVERRIDES` (a stage name, or an alias)."""
     from artic.cli.stage_runner import resolved_config, run_stage

@@ -61,8 +61,3 @@ class TrainingStageConfig(StageConfig):
                 "the trained weights, so it is part of the config)"
             )
         return runtime
-
-
-TRAIN_THREADS_HELP = (
-    "torch threads of training: part of the numerics (another count gives other weights)"
-)

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, Literal, NamedTuple, TypeVar
 from pydantic import Field
 
 from artic.artifacts.timings import SECONDS
-from artic.config.schemas import TRAIN_THREADS_HELP, Strict
+from artic.config.schemas import Strict
 
 if TYPE_CHECKING:
     import torch
@@ -48,7 +48,9 @@ class TrainConfig(Strict):
     weight_decay: float = Field(0.0, ge=0)
     patience: int = Field(gt=0, description="epochs without a better validation loss")
     device: Literal["auto", "cpu", "cuda"] = "auto"
-    threads: int = Field(2, ge=1, description=TRAIN_THREADS_HELP)
+    threads: int = Field(
+        2, ge=1, description="torch threads: part of the numerics (another count, other weights)"
+    )
 
 
 def training_device(name: str) -> torch.device:
