@@ -149,10 +149,10 @@ def test_policy_search_is_deterministic(inputs, drawer_runs, tmp_path):
 def test_interrupted_search_resumes_from_the_last_update(
     inputs, drawer_runs, tmp_path, monkeypatch
 ):
-    from artic.cli import policy_search
+    from artic.learning.search import Evaluator
 
     calls: list[int] = []
-    original = policy_search._Evaluator.row
+    original = Evaluator.row
 
     def interrupt_third(self, *args, **kwargs):
         calls.append(args[1])
@@ -160,20 +160,20 @@ def test_interrupted_search_resumes_from_the_last_update(
             raise KeyboardInterrupt
         return original(self, *args, **kwargs)
 
-    monkeypatch.setattr(policy_search._Evaluator, "row", interrupt_third)
+    monkeypatch.setattr(Evaluator, "row", interrupt_third)
     out = tmp_path / "resumed"
     args = ("task=drawer", f"dmp={inputs['drawer_dmp']}")
     code, _, err = search(out, *args)
     assert code == 130 and "resume" in err and not out.exists()
     calls.clear()
-    monkeypatch.setattr(policy_search._Evaluator, "row", original)
+    monkeypatch.setattr(Evaluator, "row", original)
     seen: list[int] = []
 
     def record(self, *a, **k):
         seen.append(a[1])
         return original(self, *a, **k)
 
-    monkeypatch.setattr(policy_search._Evaluator, "row", record)
+    monkeypatch.setattr(Evaluator, "row", record)
     code, _, err = search(out, *args)
     assert code == 0, err
     assert seen[:1] == [2], "seed 0 continued at update 2"
@@ -265,12 +265,12 @@ def test_evaluate_bootstrap_writes_curves_success_and_report(drawer_runs, tmp_pa
 
 
 def test_interrupted_dapg_resumes_to_the_same_policy(inputs, tmp_path, monkeypatch):
-    from artic.cli import policy_search
+    from artic.learning.search import Evaluator
 
     args = ("task=microwave", f"demos={inputs['microwave_demos']}", "seeds=1")
     code, _, err = search(tmp_path / "ref", *args)
     assert code == 0, err
-    original = policy_search._Evaluator.row
+    original = Evaluator.row
     calls: list[int] = []
 
     def interrupt_third(self, *a, **k):
@@ -279,10 +279,10 @@ def test_interrupted_dapg_resumes_to_the_same_policy(inputs, tmp_path, monkeypat
             raise KeyboardInterrupt
         return original(self, *a, **k)
 
-    monkeypatch.setattr(policy_search._Evaluator, "row", interrupt_third)
+    monkeypatch.setattr(Evaluator, "row", interrupt_third)
     code, _, err = search(tmp_path / "resumed", *args)
     assert code == 130, err
-    monkeypatch.setattr(policy_search._Evaluator, "row", original)
+    monkeypatch.setattr(Evaluator, "row", original)
     code, _, err = search(tmp_path / "resumed", *args)
     assert code == 0, err
     ref, out = tmp_path / "ref", tmp_path / "resumed"

@@ -37,7 +37,6 @@ from artic.learning.search import (
     load_bootstrap_dmp,
     seed_dir,
 )
-from artic.learning.search import Evaluator as _Evaluator  # noqa: F401  (tests patch its row)
 from artic.learning.search_output import run_summary
 
 
