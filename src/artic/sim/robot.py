@@ -326,3 +326,129 @@ class Grasp:
         if self.constraint is not None:
             self.robot.client.removeConstraint(self.constraint)
             self.constraint = None
+
+
+# -- torque interface (Chapter 6) ------------------------------------------------------
+
+#: Joint torque limits of the real KUKA LBR iiwa 7 R800 (datasheet, N m); the
+#: `pybullet_data` URDF says 300 N m for every joint. The iiwa stands in for the thesis'
+#: Kinova Jaco 2 (docs/rmp.md).
+IIWA7_TORQUE_LIMITS = (176.0, 176.0, 110.0, 110.0, 110.0, 40.0, 40.0)
+
+
+class LinkKinematics(NamedTuple):
+    """Kinematics of links at the simulated state, all in the world frame.
+
+    com: (L, 3) centre-of-mass positions, m; rotation: (L, 3, 3) link (URDF) frame
+    orientations; frame: (L, 3) link (URDF) frame origins, m; velocity: (L, 3) linear
+    velocities of the centres of mass, m/s; omega: (L, 3) angular velocities, rad/s;
+    jacobian: (L, 6, 7) [linear; angular] Jacobians of the centres of mass;
+    jdot_qdot: (L, 6) the velocity-product accelerations J'(q, q') q' of the centres of
+    mass (finite difference of the Jacobian along q', see `Robot.link_kinematics`)."""
+
+    com: NDArray[np.float64]
+    rotation: NDArray[np.float64]
+    frame: NDArray[np.float64]
+    velocity: NDArray[np.float64]
+    omega: NDArray[np.float64]
+    jacobian: NDArray[np.float64]
+    jdot_qdot: NDArray[np.float64]
+
+
+def release_motors(robot: Robot) -> None:
+    """Switch the joints to torque control: the default velocity motors (which PyBullet
+    keeps at target 0 with the URDF's effort) get force 0, once after each reset. The
+    URDF's joint damping (0.5 N m s) goes to 0 as well: on link 7 (inertia 4e-4 kg m^2)
+    it exceeds what PyBullet's explicit step keeps stable at 240 Hz (b dt / I = 5 > 2;
+    measured: the wrist ran away to PyBullet's 100 rad/s cap within a second)."""
+    for j in range(N_JOINTS):
+        robot.client.changeDynamics(robot.body, j, jointDamping=0.0)
+    robot.client.setJointMotorControlArray(
+        robot.body,
+        list(range(N_JOINTS)),
+        robot.client.VELOCITY_CONTROL,
+        targetVelocities=[0.0] * N_JOINTS,
+        forces=[0.0] * N_JOINTS,
+    )
+
+
+def command_torque(robot: Robot, torque: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Apply joint torques (7,) N m, clipped to `IIWA7_TORQUE_LIMITS`, for the next
+    physics step (TORQUE_CONTROL holds for one `stepSimulation` only: call it every
+    substep, after `release_motors`). Returns the clipped torques (7,)."""
+    limit = np.asarray(IIWA7_TORQUE_LIMITS)
+    tau = np.clip(np.asarray(torque, dtype=np.float64), -limit, limit)
+    robot.client.setJointMotorControlArray(
+        robot.body, list(range(N_JOINTS)), robot.client.TORQUE_CONTROL, forces=tau.tolist()
+    )
+    return tau
+
+
+def mass_matrix(robot: Robot, q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Joint-space inertia matrix M(q) (7, 7), kg m^2 (`calculateMassMatrix`)."""
+    return np.asarray(robot.client.calculateMassMatrix(robot.body, list(map(float, q))))
+
+
+def bias_forces(
+    robot: Robot, q: NDArray[np.float64], qd: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """C(q, q') q' + g(q) (7,), N m: inverse dynamics at zero joint acceleration
+    (`calculateInverseDynamics`), the torques that hold the arm's motion unaccelerated."""
+    zero = [0.0] * N_JOINTS
+    return np.asarray(
+        robot.client.calculateInverseDynamics(
+            robot.body, list(map(float, q)), list(map(float, qd)), zero
+        )
+    )
+
+
+def point_jacobian(
+    robot: Robot, link: int, local: NDArray[np.float64], q: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(6, 7) [linear; angular] Jacobian at q of a point fixed to `link`, given as
+    PyBullet's `calculateJacobian` takes it: the point c + R (local - o), c and R the
+    link's centre of mass and orientation, o its `localInertialFramePosition`
+    (`getLinkState()[2]`); so `local = o` is the centre of mass (measured against finite
+    differences of the positions: tests/sim/test_torque.py; `local = 0` is not the URDF
+    frame origin)."""
+    zero = [0.0] * N_JOINTS
+    linear, angular = robot.client.calculateJacobian(
+        robot.body, link, list(map(float, local)), list(map(float, q)), zero, zero
+    )
+    return np.array(linear + angular)
+
+
+def link_kinematics(
+    robot: Robot,
+    links: list[int],
+    q: NDArray[np.float64],
+    qd: NDArray[np.float64],
+    step: float = 1e-6,
+    curvature: bool = True,
+) -> LinkKinematics:
+    """World kinematics of `links` at the simulated state (q (7,), qd (7,) as read from
+    the simulator). J'q' is (J(q + h q') - J(q)) q' / h with h = `step` / max(|q'|, 1)
+    (one more `calculateJacobian` per link; exact as h -> 0; 0 at rest), or 0 when not
+    `curvature` (VICES does not use it)."""
+    client = robot.client
+    states = client.getLinkStates(robot.body, links, computeForwardKinematics=1)
+    com = np.array([s[0] for s in states], dtype=np.float64)
+    frame = np.array([s[4] for s in states], dtype=np.float64)
+    rotation = np.array([np.reshape(robot.client.getMatrixFromQuaternion(s[5]), (3, 3))
+                         for s in states])  # fmt: skip
+    inertial = [s[2] for s in states]
+    jacobian = np.array(
+        [point_jacobian(robot, link, o, q) for link, o in zip(links, inertial, strict=True)]
+    )
+    velocity, omega = jacobian[:, :3] @ qd, jacobian[:, 3:] @ qd
+    speed = float(np.max(np.abs(qd)))
+    if speed == 0.0 or not curvature:
+        jdot_qdot = np.zeros((len(links), 6))
+    else:
+        h = step / max(speed, 1.0)
+        ahead = np.asarray(q) + h * np.asarray(qd)
+        shifted = np.array(
+            [point_jacobian(robot, link, o, ahead) for link, o in zip(links, inertial, strict=True)]
+        )
+        jdot_qdot = (shifted - jacobian) @ qd / h
+    return LinkKinematics(com, rotation, frame, velocity, omega, jacobian, jdot_qdot)
