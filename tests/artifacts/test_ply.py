@@ -1,4 +1,5 @@
-"""PLY point clouds: exact binary round trip, foreign files, and every bad-input path."""
+"""PLY point clouds (parsed and written by plyfile): exact binary round trip, the bytes
+artic has always written, foreign files, and every bad-input path."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 import pytest
+import trimesh
+from plyfile import PlyData
 
 from artic.artifacts.ply import encode_ply, read_ply, read_ply_header, write_ply
 from artic.errors import InputError
@@ -52,8 +55,38 @@ def test_binary_round_trip_is_exact_and_deterministic(tmp_path):
         ("motion_type", "uchar"),
         ("confidence", "float"),
     )
-    # 4 floats + int32 + uint8 per point after the header
-    assert len(path.read_bytes()) == header.data_offset + 50 * 21
+    # the layout artic wrote before plyfile: this header, then 4 floats + int32 + uint8 a
+    # point, little-endian (outputs are hashed in manifests: the bytes must not change)
+    expected_header = (
+        b"ply\nformat binary_little_endian 1.0\ncomment object_id 3\ncomment kind noisy\n"
+        b"element vertex 50\nproperty float x\nproperty float y\nproperty float z\n"
+        b"property int part_id\nproperty uchar motion_type\nproperty float confidence\n"
+        b"end_header\n"
+    )
+    rows = np.empty(50, [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("part_id", "<i4"),
+                         ("motion_type", "u1"), ("confidence", "<f4")])  # fmt: skip
+    for i, a in enumerate("xyz"):
+        rows[a] = points[:, i]
+    rows["part_id"], rows["motion_type"], rows["confidence"] = part, motion, confidence
+    assert path.read_bytes() == expected_header + rows.tobytes()
+
+
+def test_comments_are_ascii_without_trailing_blanks(tmp_path):
+    path = tmp_path / "c.ply"
+    write_ply(path, cloud(3)[0], comments=["source scän.ply", "frame input  "])
+    assert b"comment source sc\\xe4n.ply\ncomment frame input\nelement" in path.read_bytes()
+    assert read_ply(path).comments == ("source sc\\xe4n.ply", "frame input")
+
+
+def test_plyfile_reads_what_artic_writes(tmp_path):
+    points, part, motion, confidence = cloud(30, seed=4)
+    path = tmp_path / "scan.ply"
+    write_ply(path, points, part, motion, confidence, comments=["kind clean"])
+    vertex = PlyData.read(str(path))["vertex"].data
+    assert np.array_equal(np.stack([vertex[a] for a in "xyz"], axis=1), points)
+    assert np.array_equal(vertex["part_id"], part) and vertex["part_id"].dtype == np.int32
+    assert np.array_equal(vertex["motion_type"], motion) and vertex["motion_type"].dtype == np.uint8
+    assert np.array_equal(vertex["confidence"], confidence)
 
 
 def test_points_only_file_and_other_readers_agree(tmp_path):
@@ -64,6 +97,10 @@ def test_points_only_file_and_other_readers_agree(tmp_path):
     assert got.part_id is None and got.motion_type is None and got.confidence is None
     o3d_cloud = o3d.io.read_point_cloud(str(path))  # a standard reader sees the same points
     assert np.allclose(np.asarray(o3d_cloud.points), points)
+    labelled = tmp_path / "labelled.ply"
+    write_ply(labelled, *cloud())
+    tm_cloud = trimesh.load(labelled)  # docs/formats.md names trimesh as a reader too
+    assert np.array_equal(np.asarray(tm_cloud.vertices, dtype=np.float32), points)
 
 
 def test_ascii_file_with_extra_properties_and_faces(tmp_path):
@@ -152,7 +189,14 @@ GOOD_HEADER = (
             "no z property",
         ),
         ("short.ply", GOOD_HEADER + "end_header\n0 0 0\n", "truncated"),
-        ("words.ply", GOOD_HEADER + "end_header\n0 0 0\n0 zero 0\n", "3 numbers"),
+        ("words.ply", GOOD_HEADER + "end_header\n0 0 0\n0 zero 0\n", "row 2, property 'y'"),
+        ("long.ply", GOOD_HEADER + "end_header\n0 0 0\n0 0 0 0\n", "row 2: expected end-of-line"),
+        (
+            "type.ply",
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty real x\nend_header\n",
+            "line 4 not understood",
+        ),
+        ("binary.ply", b"ply\nformat ascii 1.0\ncomment \xff\nend_header\n", "not ASCII"),
         ("nan.ply", GOOD_HEADER + "end_header\n0 0 0\nnan 0 0\n", "1 of 2 points have NaN"),
         ("inf.ply", GOOD_HEADER + "end_header\ninf 0 0\n0 0 0\n", "NaN or infinite"),
         (
@@ -170,7 +214,11 @@ GOOD_HEADER = (
     ],
 )
 def test_bad_files_raise_one_line_input_errors(tmp_path, name, content, message):
-    path = write_text(tmp_path / name, content)
+    path = tmp_path / name
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        write_text(path, content)
     with pytest.raises(InputError, match=message) as info:
         read_ply(path)
     assert "\n" not in str(info.value) and name in str(info.value)
@@ -201,3 +249,21 @@ def test_encoder_rejects_malformed_arrays():
         encode_ply(points, part_id=np.zeros(4, dtype=np.int64))
     with pytest.raises(ValueError, match="single lines"):
         encode_ply(points, comments=["two\nlines"])
+
+
+def test_binary_file_with_a_list_element_before_the_vertices(tmp_path):
+    # plyfile parses elements with lists wherever they are (the hand-written reader refused)
+    header = (
+        "ply\nformat binary_little_endian 1.0\nelement face 1\n"
+        "property list uchar int vertex_indices\nelement vertex 3\nproperty float x\n"
+        "property float y\nproperty float z\nend_header\n"
+    )
+    face = np.array([3], "u1").tobytes() + np.array([0, 1, 2], "<i4").tobytes()
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], "<f4")
+    path = tmp_path / "mesh.ply"
+    path.write_bytes(header.encode() + face + points.tobytes())
+    assert np.array_equal(read_ply(path).points, points)
+    header_read = read_ply_header(path)
+    face_element = header_read.element("face")
+    assert face_element is not None and face_element.has_lists
+    assert face_element.properties == (("vertex_indices", "list uchar int"),)

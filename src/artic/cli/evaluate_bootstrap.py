@@ -11,9 +11,12 @@ the same task config) and writes:
 - `success.csv`: per init, episodes, successes, success rate, mean return;
 - `report.md`: the table, whether the bootstrapped mean beats the random one at every
   update, and the first update at which the bootstrapped curve reaches 90% of its final
-  value (target: within 50 updates).
+  value (target: within 50 updates);
+- with `video.enabled=true`, `video_<init>.gif`: episode 0 of each init (its seed 0's
+  final policy, the episode of that row of episodes.csv) filmed by `artic.sim.camera`.
 
-Chunks: one per (init, seed) pair, each rolling out that seed's share of the episodes.
+Chunks: one per (init, seed) pair, each rolling out that seed's share of the episodes
+(the chunk of seed 0 also films the video).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from artic.learning.search_output import (
     SearchOutput,
     bootstrap_verdict,
     curve_stats,
+    film_episode,
     open_runs,
 )
 
@@ -72,6 +76,9 @@ def evaluate_chunk(
         env.close()
     (tmp / "episodes").mkdir()
     write_csv(tmp / "episodes" / f"{init}_{seed:03d}.csv", EPISODE_COLUMNS, rows)
+    if cfg.video.enabled and seed == 0:
+        _, gif = film_episode(run.cfg.task, act, int(starts[0]), cfg.video)
+        (tmp / f"video_{init}.gif").write_bytes(gif)
     return len(rows)
 
 
@@ -99,6 +106,7 @@ def _finalize(
         verdict, (cfg.reach_fraction, cfg.reach_within), (b.folder, r.folder),
     )  # fmt: skip
     (work / "report.md").write_text(text)
+    videos = {"videos": ", ".join(f"video_{i}.gif" for i in INITS)} if cfg.video.enabled else {}
     return {
         "task": cfg.task.name,
         "bootstrap final": round(float(stats["bootstrap"][-1, 2]), 4),
@@ -107,6 +115,7 @@ def _finalize(
         "random success": round(success["random"][1] / success["random"][0], 3),
         "beats random at every update": str(verdict["beats_every_update"]),
         "reaches 90% by update": str(verdict["reach_update"]),
+        **videos,
     }
 
 

@@ -1,14 +1,16 @@
 """A finished policy-search output folder (`artic policy-search`, docs/formats.md) read
 back: its validated config, its learning curve and each seed's final policy as an
 `ActionFn`; and the config (`EvaluateBootstrapConfig`), the two runs (`open_runs`) and
-the statistics over seeds (`curve_stats`, `bootstrap_verdict`) of Figure 5.2."""
+the statistics over seeds (`curve_stats`, `bootstrap_verdict`) of Figure 5.2, and the
+optional video of a final policy (`VideoConfig`, `film_episode`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+import gymnasium as gym
 import numpy as np
 from pydantic import Field
 
@@ -18,6 +20,11 @@ from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 from artic.evaluation.bootstrap_report import INITS
 from artic.learning.search import CURVE, CURVE_COLUMNS, PolicySearchConfig, algorithm_of, seed_dir
+from artic.sim.camera import CameraConfig
+from artic.sim.tasks import TaskConfig
+
+if TYPE_CHECKING:
+    from artic.learning.rollout import ActionFn, Trajectory
 
 
 class TaskName(Strict):
@@ -26,6 +33,16 @@ class TaskName(Strict):
 
     model_config = Strict.model_config | {"extra": "ignore"}
     name: str = Field(description="task name: drawer, microwave, tball")
+
+
+class VideoConfig(Strict):
+    """The animated GIF of each init's final policy (seed 0's, evaluation episode 0)."""
+
+    enabled: bool = Field(False, description="write video_<init>.gif (off: no rendering)")
+    frame_every: int = Field(
+        2, ge=1, description="keep every n-th control step's frame (2: 10 frames/s at 20 Hz)"
+    )
+    camera: CameraConfig = Field(default_factory=CameraConfig, description="view and size")
 
 
 class EvaluateBootstrapConfig(StageConfig):
@@ -37,6 +54,7 @@ class EvaluateBootstrapConfig(StageConfig):
     episodes: int = Field(100, gt=0, description="evaluation rollouts per init")
     reach_fraction: float = Field(0.9, gt=0, le=1, description="fraction of the final return")
     reach_within: int = Field(50, ge=0, description="updates to reach it within (target)")
+    video: VideoConfig = Field(default_factory=VideoConfig, description="video of the policy")
 
     def episodes_of(self, n_seeds: int, seed: int) -> list[int]:
         """The evaluation episodes seed `seed` of a run of `n_seeds` seeds rolls out."""
@@ -201,3 +219,51 @@ def bootstrap_verdict(
         "reach_update": reach,
         "reach_ok": reach is not None and reach <= reach_within,
     }
+
+
+def film_episode(
+    task: TaskConfig, act: ActionFn, reset_seed: int, video: VideoConfig
+) -> tuple[Trajectory, bytes]:
+    """One episode of `act` from `reset(seed=reset_seed)`, the same as
+    `artic.learning.rollout.rollout` gives, and its animated GIF: the frames after the
+    reset and after every `frame_every`-th step and the last one (`artic.sim.camera`,
+    deterministic), shown at the control rate / `frame_every`."""
+    from artic.learning.rollout import rollout
+    from artic.sim.camera import encode_gif
+    from artic.sim.envs import ArticTaskEnv
+
+    env = _Filmed(
+        ArticTaskEnv(task, seed=None, render_mode="rgb_array", camera=video.camera),
+        video.frame_every,
+    )
+    try:
+        traj = rollout(env, act, reset_seed)
+    finally:
+        env.close()
+    return traj, encode_gif(env.frames, fps=1.0 / (task.control_dt * video.frame_every))
+
+
+class _Filmed(gym.Wrapper[Any, Any, Any, Any]):
+    """Keeps `render()` frames of the last episode: after the reset, after every
+    `every`-th step and after the step that ends it (only those are rendered)."""
+
+    def __init__(self, env: gym.Env[Any, Any], every: int) -> None:
+        super().__init__(env)
+        self.every, self._steps = every, 0
+        self.frames: list[np.ndarray] = []
+
+    def _keep(self) -> None:
+        self.frames.append(np.asarray(self.env.render(), dtype=np.uint8))
+
+    def reset(self, **kwargs: Any) -> Any:
+        out = self.env.reset(**kwargs)
+        self.frames, self._steps = [], 0
+        self._keep()
+        return out
+
+    def step(self, action: Any) -> Any:
+        out = self.env.step(action)
+        self._steps += 1
+        if self._steps % self.every == 0 or out[2] or out[3]:
+            self._keep()
+        return out

@@ -1,21 +1,31 @@
 """Gymnasium environments of the Chapter 5 tasks (section 5.3.1).
 
-`ArticTaskEnv(task, seed)` wraps a `TaskWorld`:
+`ArticTaskEnv(task, seed, render_mode, normalised_actions, camera)` wraps a `TaskWorld`:
 - observation s_t = [q_R, q_O] (float32, 7 + dof), clipped to `observation_space`
   (robot joint limits widened by `JOINT_MARGIN`, since PyBullet's limits are soft;
   object within `OBJECT_BOUND` of its range);
 - action a_t = commanded joint velocities (7,), rad/s; the simulator receives them
-  clipped to the velocity limits (`action_space`);
+  clipped to the velocity limits (`action_space`). With `normalised_actions=True` the
+  action space is [-1, 1]^7 instead (what `check_env` and most RL libraries expect),
+  and a_t = (given action) * (velocity limits) is what the simulator receives and the
+  reward sees, so returns are the same in both modes for the same joint velocities;
 - reward Eq. 5.1, r_t = -c ||q_O* - q_O||^2 - a_t^T R a_t with R = r I, evaluated on
-  the object state after the step and the action as given (before clipping);
+  the object state after the step and a_t as given (before clipping), in rad/s;
 - `terminated` is always False; `truncated` once `horizon` steps are taken;
-- `info`: `success` (||q_O - q_O*|| <= success_threshold) and `q_object`.
+- `info`: `success` (||q_O - q_O*|| <= success_threshold) and `q_object`;
+- `render_mode="rgb_array"`: `render()` returns a (height, width, 3) uint8 frame of
+  `artic.sim.camera.SceneCamera` (PyBullet's TinyRenderer, deterministic), whose client
+  is made at the first `render()`; `render_mode=None` never renders (`render()` returns
+  None). Rendering never changes the simulation.
 `reset(seed=...)` draws the start configuration q_R(0) = start_q + N(0, start_noise^2)
 (clipped to the joint limits) from the environment's generator; the same seed gives the
 same trajectory, bit for bit.
 
-Gymnasium ids `artic/Drawer-v0`, `artic/Microwave-v0`, `artic/TBall-v0` exist after
-`register_envs()` (not at import of artic).
+Importing this module registers every task of `artic.sim.tasks.TASKS` with Gymnasium
+(`register_envs`): `artic/Drawer-v0`, `artic/Microwave-v0`, `artic/TBall-v0`, each with
+`max_episode_steps` = its horizon, so `gym.make("artic/Drawer-v0")` works after
+`import artic.sim.envs`, and `gym.make("artic.sim.envs:artic/Drawer-v0")` imports it
+itself. `import artic` alone registers nothing (and loads no simulator).
 """
 
 from __future__ import annotations
@@ -27,17 +37,21 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from artic.sim.tasks import TaskConfig, TBallScene, get_task
+from artic.sim.camera import CameraConfig, SceneCamera
+from artic.sim.tasks import TASKS, TaskConfig, TBallScene, get_task
 from artic.sim.world import TaskWorld
 
 JOINT_MARGIN = 0.1  # rad beyond the URDF limits still inside the observation space
 OBJECT_BOUND = 10.0  # m or rad beyond the object range still inside the observation space
 
-ENV_IDS = {
-    "artic/Drawer-v0": "drawer",
-    "artic/Microwave-v0": "microwave",
-    "artic/TBall-v0": "tball",
-}
+#: Gymnasium names of tasks whose name is not simply capitalised (`env_id`)
+ENV_NAMES = {"tball": "TBall"}
+
+
+def env_id(task: str) -> str:
+    """The Gymnasium id of task `task`: `artic/<Name>-v0` (`ENV_NAMES`, else the task
+    name with its first letter capitalised)."""
+    return f"artic/{ENV_NAMES.get(task, task[:1].upper() + task[1:])}-v0"
 
 
 def kinematic_reward(
@@ -63,10 +77,23 @@ def _object_range(cfg: TaskConfig) -> tuple[float, float]:
 class ArticTaskEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     """One Chapter 5 task as a Gymnasium environment (see the module docstring)."""
 
-    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium API)
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012
 
-    def __init__(self, task: str | TaskConfig = "drawer", seed: int | None = None) -> None:
+    def __init__(
+        self,
+        task: str | TaskConfig = "drawer",
+        seed: int | None = None,
+        render_mode: str | None = None,
+        normalised_actions: bool = False,
+        camera: CameraConfig | None = None,
+    ) -> None:
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.task = get_task(task) if isinstance(task, str) else task
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.task.control_dt)}
+        self.camera_cfg = camera or CameraConfig()
+        self._camera: SceneCamera | None = None
         self.world = TaskWorld.create(self.task, np.random.default_rng(seed))
         low, high = self.world.robot_limits()
         lo, hi = _object_range(self.task)
@@ -83,7 +110,14 @@ class ArticTaskEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         limit = self.world.velocity_limits().astype(np.float32)
         self.observation_space = self._observation_box
         self.action_box = gym.spaces.Box(low=-limit, high=limit, dtype=np.float32)
-        self.action_space = self.action_box
+        """The joint speed limits, rad/s: the action space unless `normalised_actions`."""
+        self.normalised_actions = normalised_actions
+        self._action_scale = self.world.velocity_limits() if normalised_actions else None
+        self.action_space = (
+            gym.spaces.Box(low=-1.0, high=1.0, shape=(7,), dtype=np.float32)
+            if normalised_actions
+            else self.action_box
+        )
         self._rng = np.random.default_rng(seed)
         self._steps = 0
 
@@ -119,7 +153,9 @@ class ArticTaskEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         self, action: NDArray[np.float32]
     ) -> tuple[NDArray[np.float32], SupportsFloat, bool, bool, dict[str, Any]]:
         """Apply a_t for one control period; returns (s_t+1, r_t, False, truncated, info)."""
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        a: NDArray[np.float64] = np.asarray(action, dtype=np.float64).reshape(-1)
+        if self._action_scale is not None:
+            a = a * self._action_scale  # [-1, 1] -> rad/s
         self.world.apply_action(a)
         self.world.step()
         self._steps += 1
@@ -130,23 +166,40 @@ class ArticTaskEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         truncated = self._steps >= self.world.horizon
         return self._observation(), reward, False, truncated, info
 
+    def render(self) -> NDArray[np.uint8] | None:
+        """The current frame (height, width, 3) uint8 in `rgb_array` mode; None otherwise."""
+        if self.render_mode != "rgb_array":
+            return None
+        if self._camera is None:
+            self._camera = SceneCamera(self.world, self.camera_cfg)
+        return self._camera.render()
+
     def close(self) -> None:
+        if self._camera is not None:
+            self._camera.close()
+            self._camera = None
         self.world.close()
         super().close()
 
 
 def register_envs() -> list[str]:
-    """Register `artic/Drawer-v0`, `artic/Microwave-v0`, `artic/TBall-v0` with gymnasium
-    (idempotent); returns the ids. `gym.make(id, seed=...)` then builds the env."""
-    for env_id, task in ENV_IDS.items():
-        if env_id not in gym.registry:
+    """Register every task of `artic.sim.tasks.TASKS` with Gymnasium as `env_id(task)`,
+    with `max_episode_steps` = the task's horizon; returns the ids. Idempotent: an id
+    already registered is left as it is (no warning). `gym.make(id, seed=...,
+    render_mode=..., normalised_actions=...)` then builds the env (a `task=` config of
+    another horizon needs `max_episode_steps=` too)."""
+    ids = []
+    for task in TASKS:
+        name = env_id(task)
+        if name not in gym.registry:
             gym.register(
-                id=env_id,
+                id=name,
                 entry_point="artic.sim.envs:ArticTaskEnv",
                 kwargs={"task": task},
-                max_episode_steps=None,
+                max_episode_steps=get_task(task).horizon,
             )
-    return list(ENV_IDS)
+        ids.append(name)
+    return ids
 
 
 def measure_steps_per_second(task: str | TaskConfig, n: int = 500, seed: int = 0) -> float:
@@ -166,3 +219,7 @@ def measure_steps_per_second(task: str | TaskConfig, n: int = 500, seed: int = 0
         return n / (time.perf_counter() - start)
     finally:
         env.close()
+
+
+ENV_IDS = register_envs()
+"""The Gymnasium ids registered at import, in task order."""

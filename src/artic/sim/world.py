@@ -182,6 +182,14 @@ class TaskWorld:
         states = client.getJointStates(self._sim.target, self._object_joints)
         return np.array([s[0] for s in states], dtype=np.float64)
 
+    def ball_position(self) -> NDArray[np.float64] | None:
+        """(3,) world position of the t-ball's ball, m (None for articulated scenes);
+        read by `artic.sim.camera` to draw the ball where the simulation has it."""
+        if self._sim.ball is None:
+            return None
+        position, _ = self._sim_client.getBasePositionAndOrientation(self._sim.ball)
+        return np.asarray(position, dtype=np.float64)
+
     @property
     def grasp_held(self) -> bool:
         """Whether the grasp constraint currently holds the target."""
