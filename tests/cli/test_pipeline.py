@@ -23,6 +23,9 @@ def test_smoke_pipeline_runs_then_skips(tmp_path, monkeypatch):
         read_manifest(tmp_path / "artifacts/smoke/depth/refrigerator").config["render"]["backend"]
         == "pybullet"
     )
+    # each stage's line echoes the command that runs it alone (issue 16)
+    assert "artic evaluate bootstrap debug=tiny task=drawer" in out
+    assert "artic evaluate-bootstrap" not in out
     code, out, err = run_cli("pipeline", "smoke")
     assert code == 0, err
     assert "complete" not in out and out.count("up to date") + out.count("skipped") >= 6
@@ -106,4 +109,63 @@ def test_pipeline_variables_default_and_override(tmp_path, monkeypatch):
 def test_bad_pipeline_variable_exits_2(tmp_path, monkeypatch, assignment, message):
     monkeypatch.chdir(tmp_path)
     code, _, err = run_cli("pipeline", _write(tmp_path, VARS_PIPELINE), assignment)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_echoed_commands_exist(tmp_path, monkeypatch):
+    """`command_line` spells each smoke stage's command as the CLI has it."""
+    from artic.cli.pipeline import command_line, load_pipeline
+    from artic.cli.registry import resolve
+    from artic.config.pipeline_file import pipeline_path
+
+    pipeline = load_pipeline(pipeline_path("smoke"))
+    commands = set()
+    for spec in pipeline.stages.values():
+        words = command_line(resolve(spec.cmd, spec.overrides), []).split()[1:]
+        commands.add(tuple(words))
+    assert ("evaluate", "bootstrap") in commands and ("evaluate-bootstrap",) not in commands
+    for words in sorted(commands):
+        code, _, err = run_cli(*words, "--help")
+        assert code == 0, (words, err)
+
+
+@pytest.mark.parametrize("name", ["smoke", "ch4_paper"])
+def test_summary_is_readable_at_80_columns(tmp_path, monkeypatch, name):
+    """Output paths relative to their common folder (in the title), never cut."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("COLUMNS", "80")
+    code, out, err = run_cli("pipeline", name, "--dry-run")
+    assert code == 0, err
+    assert "…" not in out
+    assert max(len(line) for line in out.splitlines()) <= 80
+    root = "artifacts/smoke" if name == "smoke" else "artifacts/paper"
+    assert f"outputs under {root}/" in out
+    outs = [line.split("│")[3].strip() for line in out.splitlines() if line.startswith("│ ")]
+    assert "reports/hierarchy/storage_furniture" in outs
+
+
+def test_bootstrap_overrides_go_to_the_stages_that_take_them(tmp_path, monkeypatch):
+    from artic.cli.pipeline import load_pipeline, stage_overrides
+    from artic.config.pipeline_file import pipeline_path
+
+    path = pipeline_path("bootstrap")
+    given = stage_overrides(path, load_pipeline(path), ["seeds=2", "updates=10"])
+    assert given["search-bootstrap"] == given["search-random"] == ["seeds=2", "updates=10"]
+    assert given["demos"] == [] and given["dmp"] == []
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli("bootstrap", "--task", "drawer", "seeds=2", "updates=10", "--dry-run")
+    assert code == 0, err
+    assert "search-random" in out
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("seedz=2", "no stage takes key 'seedz'; did you mean seed or seeds?"),
+        ("seeds", "expected KEY=VALUE"),
+    ],
+)
+def test_bootstrap_override_no_stage_takes_exits_2(tmp_path, monkeypatch, override, message):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli("bootstrap", "--task", "drawer", override, "--dry-run")
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1

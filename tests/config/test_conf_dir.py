@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from artic.cli.pipeline import pipeline_path
 from artic.config.compose import conf_dir, stages_dir
+from artic.config.pipeline_file import pipeline_path
 from artic.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -30,8 +30,9 @@ from __future__ import annotations
 import os
 import secrets
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 from filelock import FileLock, Timeout
@@ -300,3 +301,61 @@ def chunks_of_shard(n_chunks: int, shard_index: int, shard_count: int) -> list[i
 def shards_of_chunks(chunks: set[int] | list[int], shard_count: int) -> list[int]:
     """The (0-based) shards responsible for `chunks`, sorted."""
     return sorted({c % shard_count for c in chunks})
+
+
+def shard_names(shards: Sequence[int], shard_count: int) -> str:
+    """0-based shards as the CLI names them: "2/4, 4/4"."""
+    return ", ".join(f"{s + 1}/{shard_count}" for s in shards)
+
+
+@dataclass
+class Progress:
+    """How far a stage output `out` is: `state` is "done" (published, of this config and
+    these inputs), "partial" (a work area of this key with `chunks_done` of `n_chunks`
+    chunks), "none" (nothing of this key yet) or "waiting" (its inputs are not made).
+    `missing`: the 0-based shards with chunks left (None when the chunk count is not
+    known)."""
+
+    out: Path
+    state: str
+    missing: list[int] | None = None
+    chunks_done: int = 0
+    n_chunks: int | None = None
+
+
+def progress_of(
+    out: Path,
+    config_hash: str,
+    input_hashes: dict[str, str],
+    n_chunks: int | None,
+    shard_count: int,
+) -> Progress:
+    """The progress of output `out` for a config and inputs (`key_of` them), read only:
+    no lock taken, nothing written (a status may be stale by the time it is read)."""
+    from artic.artifacts.manifest import MANIFEST, read_manifest
+
+    work = WorkDir(out)
+    pending = work.stored_key() == key_of(config_hash, input_hashes)
+    if not pending and (out / MANIFEST).is_file():
+        previous = read_manifest(out)
+        same_inputs = {k: r.content_hash for k, r in previous.inputs.items()} == input_hashes
+        if previous.config_hash == config_hash and same_inputs:
+            return Progress(out, "done", [])
+    if not pending:
+        every = list(range(shard_count))
+        if n_chunks is not None:
+            every = shards_of_chunks(list(range(n_chunks)), shard_count)
+        return Progress(out, "none", every, 0, n_chunks)
+    finished = work.finished()
+    if n_chunks is None:
+        return Progress(out, "partial", None, len(finished))
+    missing = shards_of_chunks(sorted(set(range(n_chunks)) - finished), shard_count)
+    return Progress(out, "partial", missing, len(finished), n_chunks)
+
+
+def key_of(config_hash: str, input_hashes: dict[str, str]) -> str:
+    """The key of a work area: its config hash and its inputs' content hashes (as the
+    stage runner stores it in `.state/config_hash`)."""
+    from artic.artifacts.hashing import sha256_json
+
+    return sha256_json({"config": config_hash, "inputs": input_hashes})

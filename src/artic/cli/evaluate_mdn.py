@@ -145,6 +145,7 @@ STAGE: Stage[EvaluateMdnConfig] = Stage(
     plan=_plan,
     chunk=evaluate_chunk,
     finalize=_finalize,
+    one_chunk=True,
     inputs={"model": "train-mdn", "depth": "render-depth", "objects": "generate-dataset"},
     input_paths=_input_paths,
 )

@@ -82,6 +82,7 @@ STAGE: Stage[FitDmpConfig] = Stage(
     plan=_plan,
     chunk=fit_chunk,
     finalize=_finalize,
+    one_chunk=True,
     inputs={"demos": "plan-demos"},
     input_paths=lambda cfg: {"demos": Path(cfg.demos)},
 )

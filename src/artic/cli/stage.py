@@ -41,7 +41,8 @@ class Stage(Generic[C]):
     stage always composes with, e.g. render-scan's `render=scan`) and `alias` (another
     command line that runs this stage, with a log line saying so: "render-depth
     render=scan"). The registry reads these from the source without importing the
-    module, so they must be literals."""
+    module, so they must be literals. `one_chunk`: the plan always has one chunk, so the
+    stage cannot be split into shards (the cluster launcher refuses to)."""
 
     name: str
     conf: str
@@ -56,3 +57,5 @@ class Stage(Generic[C]):
     task_option: bool = False
     preset: tuple[str, ...] = ()
     alias: str = ""
+    #: the stage's work is always one chunk (a training run, one evaluation): no shards
+    one_chunk: bool = False

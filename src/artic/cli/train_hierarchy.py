@@ -220,6 +220,7 @@ STAGE: Stage[TrainHierarchyConfig] = Stage(
     plan=_plan,
     chunk=train_chunk,
     finalize=_finalize,
+    one_chunk=True,
     inputs={"scans": "render-scan"},
     input_paths=lambda cfg: {"scans": Path(cfg.scans)},
 )

@@ -142,6 +142,7 @@ STAGE: Stage[TrainMdnConfig] = Stage(
     plan=_plan,
     chunk=train_chunk,
     finalize=_finalize,
+    one_chunk=True,
     inputs={"depth": "render-depth"},
     input_paths=lambda cfg: {"depth": Path(cfg.depth)},
 )

@@ -197,6 +197,7 @@ STAGE: Stage[TrainSegmenterConfig] = Stage(
     plan=_plan,
     chunk=train_chunk,
     finalize=_finalize,
+    one_chunk=True,
     inputs={"scans": "render-scan"},
     input_paths=lambda cfg: {"scans": Path(cfg.scans)},
 )
