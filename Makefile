@@ -17,16 +17,12 @@ $(STAMP): pyproject.toml constraints.txt scripts/system-deps.sh
 	$(BIN)/python -m pip install -q -c constraints.txt -e '.[dev]'
 	touch $(STAMP)
 
-demo: setup  ## run the smoke pipeline on tiny defaults and show where its outputs are
+demo: setup  ## the smoke pipeline, then the user's journeys on the shipped models
 	$(BIN)/artic pipeline smoke
-	$(BIN)/artic infer-hierarchy artifacts/smoke/scans/storage_furniture/scans/000000_00_noisy.ply \
-	  --segmenter artifacts/smoke/models/segmenter/storage_furniture/model.pt \
-	  --labeller artifacts/smoke/models/hierarchy/storage_furniture/model.pt \
-	  --out artifacts/smoke/hierarchy/000000_00
+	$(BIN)/python scripts/demo.py --out artifacts/demo
 	@echo
-	@echo "Outputs: artifacts/smoke/ (each folder has a manifest.json; see preview.png in the depth folders)"
-	@find artifacts/smoke -maxdepth 4 -name preview.png -o -maxdepth 4 -name '*.png' -path '*reports*' | sort | sed 's/^/  /'
-	@echo "  artifacts/smoke/hierarchy/000000_00/ (hierarchy.json, object.urdf, parts.ply, hierarchy.png)"
+	@echo "Outputs: artifacts/smoke/ and artifacts/demo/ (each folder has a manifest.json)"
+	@find artifacts/smoke artifacts/demo -maxdepth 4 -name preview.png -o -maxdepth 4 -name '*.png' -path '*reports*' -o -maxdepth 4 -name hierarchy.png | sort | sed 's/^/  /'
 
 smoke: demo
 
@@ -44,9 +40,9 @@ bench: setup  ## benchmarks; results in bench/results/ and docs/benchmarks.md
 	$(BIN)/python bench/run_all.py
 
 lint: setup
-	$(BIN)/ruff check src tests bench
-	$(BIN)/ruff format --check src tests bench
+	$(BIN)/ruff check src tests bench scripts
+	$(BIN)/ruff format --check src tests bench scripts
 	$(BIN)/mypy
 
 clean:
-	rm -rf artifacts/smoke .pytest_cache .mypy_cache .ruff_cache build dist
+	rm -rf artifacts/smoke artifacts/demo .pytest_cache .mypy_cache .ruff_cache build dist

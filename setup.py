@@ -1,9 +1,11 @@
-"""Build hook: copy the top-level `conf/` and `stages/` into the package at build time.
+"""Build hook: copy the top-level `conf/`, `stages/` and `models/` into the package at
+build time.
 
-The repository keeps `conf/` and `stages/` at its top level (the project's layout); a
-wheel carries them as `artic/conf/` and `artic/stages/`, where `artic.config.compose`
-finds them with `importlib.resources`. An editable install reads the top-level folders
-directly, so nothing is copied then. Everything else is in pyproject.toml.
+The repository keeps `conf/`, `stages/` and the shipped model store `models/` at its top
+level (the project's layout); a wheel carries them as `artic/conf/`, `artic/stages/` and
+`artic/models/`, where `artic.config.compose` finds them with `importlib.resources`. An
+editable install reads the top-level folders directly, so nothing is copied then.
+Everything else is in pyproject.toml.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from setuptools import setup
 from setuptools.command.build_py import build_py
 
 HERE = Path(__file__).resolve().parent
-DATA = ("conf", "stages")
+DATA = ("conf", "stages", "models")
 
 
 class BuildPyWithData(build_py):

@@ -19,8 +19,8 @@ rm -rf build
 rm -rf build
 wheel=$(ls "$tmp"/dist/artic-*.whl) || fail "no wheel in $tmp/dist"
 
-# 2. Contents: every file of conf/ and stages/ (as git tracks them), py.typed, LICENSE.
-git ls-files conf stages > "$tmp/expected" || fail "git ls-files"
+# 2. Contents: every file of conf/, stages/ and models/ (as git tracks them), py.typed, LICENSE.
+git ls-files conf stages models > "$tmp/expected" || fail "git ls-files"
 .venv/bin/python - "$wheel" "$tmp/expected" <<'PY' || fail "wheel contents"
 import sys, zipfile
 names = set(zipfile.ZipFile(sys.argv[1]).namelist())
@@ -31,7 +31,7 @@ if not any(n.endswith(".dist-info/licenses/LICENSE") for n in names):
     missing.append("*.dist-info/licenses/LICENSE")
 if missing:
     sys.exit(f"wheel-check: {len(missing)} file(s) missing from the wheel: {missing[:10]}")
-print(f"wheel-check: {sys.argv[1].rsplit('/', 1)[-1]}: {len(names)} files, conf/ and stages/ complete")
+print(f"wheel-check: {sys.argv[1].rsplit('/', 1)[-1]}: {len(names)} files, conf/, stages/ and models/ complete")
 PY
 
 # 3. A fresh venv outside the checkout, the wheel installed with the tested versions.
@@ -54,4 +54,10 @@ esac
 env -u ARTIC_CONF "$tmp/venv/bin/artic" generate-dataset debug=tiny out="$tmp/run/objects" \
   > "$tmp/run/log" 2>&1 || { cat "$tmp/run/log" >&2; fail "artic generate-dataset"; }
 [ -f "$tmp/run/objects/manifest.json" ] || fail "no objects/manifest.json"
-echo "wheel-check: ok ($got, conf/ from the installed package, generate-dataset debug=tiny) in $(( $(date +%s) - start ))s"
+# the shipped models are found in the installed package, each listed by `artic models`
+shipped=$(git -C "$repo" ls-files models | grep -c '/card.json$' || true)
+listed=$(env -u ARTIC_CONF -u ARTIC_MODELS "$tmp/venv/bin/artic" models --json | "$tmp/venv/bin/python" -c \
+  'import json, sys; print(sum(m["source"] == "shipped" for m in json.load(sys.stdin)))') \
+  || fail "artic models"
+[ "$listed" = "$shipped" ] || fail "artic models lists $listed shipped models, the repository ships $shipped"
+echo "wheel-check: ok ($got, conf/ from the installed package, generate-dataset debug=tiny, $listed shipped models) in $(( $(date +%s) - start ))s"

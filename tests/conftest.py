@@ -16,6 +16,13 @@ import pytest  # noqa: E402
 from cli_runner import run_cli  # noqa: E402
 
 
+@pytest.fixture(autouse=True)
+def no_shipped_models(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch):
+    """Tests see an empty shipped model store (`ARTIC_MODELS`), so what ships cannot change
+    what they check; tests of the real store delete the variable."""
+    monkeypatch.setenv("ARTIC_MODELS", str(tmp_path_factory.getbasetemp() / "no-shipped-models"))
+
+
 @pytest.fixture(scope="session")
 def tiny_objects(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A tiny microwave object dataset (debug=tiny)."""

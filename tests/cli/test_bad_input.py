@@ -470,7 +470,7 @@ CASES: dict[str, Build] = {
         ["segment", str(e.ply("s.ply", _cloud())), "--category", "Big Box"], "--category"),
     "segment/no default model": lambda e: (
         ["segment", str(e.ply("s.ply", _cloud())), "--category", "lamp"],
-        "train-segmenter category=lamp"),
+        "no segmenter model for lamp (none shipped); make one with `artic pipeline ch4`"),
     "segment/out is a file": lambda e: (
         ["segment", str(e.ply("s.ply", _cloud())), "--out", str(e.file("o.txt", "mine"))],
         "o.txt"),
@@ -488,7 +488,7 @@ CASES: dict[str, Build] = {
         ["build-hierarchy", str(e.ply("p.ply", *box_cloud(800))), "--scale", "mm"], "--scale"),
     "build/no default model": lambda e: (
         ["build-hierarchy", str(e.ply("p.ply", *box_cloud(800))), "--category", "lamp"],
-        "train-hierarchy category=lamp"),
+        "no hierarchy model for lamp (none shipped); make one with `artic pipeline ch4`"),
     # infer-hierarchy
     "infer/missing scan": lambda e: (["infer-hierarchy", str(e.tmp / "absent.ply")], "absent"),
     "infer/points coincide": lambda e: (
@@ -500,7 +500,7 @@ CASES: dict[str, Build] = {
          str(e.file("mine/notes.txt", "keep").parent)], "not an artic output folder"),
     "infer/no default segmenter": lambda e: (
         ["infer-hierarchy", str(e.ply("s.ply", _cloud())), "--category", "lamp"],
-        "train-segmenter category=lamp"),
+        "no segmenter model for lamp (none shipped); make one with `artic pipeline ch4`"),
     "infer/ascii body malformed": lambda e: (
         ["infer-hierarchy", str(e.file("a.ply", "ply\nformat ascii 1.0\nelement vertex 2\n"
                                        "property float x\nproperty float y\nproperty float z\n"
@@ -530,6 +530,20 @@ CASES: dict[str, Build] = {
     "bootstrap/unknown task": lambda e: (["bootstrap", "--task", "sofa"], "sofa"),
     "bootstrap/unknown option": lambda e: (["bootstrap", "--tasks", "drawer"], "--tasks"),
     "bootstrap/extra argument": lambda e: (["bootstrap", "drawer"], "drawer"),
+    # train-rmp and evaluate rmp (Chapter 6)
+    "train-rmp/unknown task": lambda e: (["train-rmp", "--task", "sofa", e.out], "sofa"),
+    "train-rmp/Chapter 5 task": lambda e: (["train-rmp", "--task", "drawer", e.out], "task.name"),
+    "train-rmp/unknown controller": lambda e: (
+        ["train-rmp", "controllers=[osc]", e.out], "controllers"),
+    "train-rmp/kp min above max": lambda e: (["train-rmp", "vices.kp_min=400", e.out], "kp_min"),
+    "train-rmp/zero sphere radius": lambda e: (
+        ["train-rmp", "task.obstacles.radius=0", e.out], "task.obstacles.radius"),
+    "evaluate rmp/missing policies": lambda e: (
+        ["evaluate", "rmp", "tasks=[door]", f"policies.door={e.tmp / 'absent'}", e.out], "absent"),
+    "evaluate rmp/objects as policies": lambda e: (
+        ["evaluate", "rmp", "tasks=[door]", f"policies.door={e.objects}", e.out],
+        "generate-dataset"),
+    "evaluate rmp/unknown task": lambda e: (["evaluate", "rmp", "tasks=[sofa]", e.out], "tasks"),
 }  # fmt: skip
 
 

@@ -273,7 +273,7 @@ def test_bad_options_and_models_exit_2(scan, models, tmp_path):
     code, _, err = infer(scan, models, tmp_path / "o", "--category", "lamp")
     assert code == 2 and "not lamp" in err, err
     code, _, err = run_cli("segment", str(scan), "--category", "lamp", "--out", str(tmp_path / "o"))
-    assert code == 2 and "train-segmenter category=lamp" in err, err
+    assert code == 2 and "artic pipeline ch4" in err and "--model PATH" in err, err
     stranger = tmp_path / "mine"
     stranger.mkdir()
     (stranger / "notes.txt").write_text("keep me")

@@ -110,7 +110,7 @@ def _job_of_shard(folder: Path, shard: int, proc: subprocess.Popen[bytes]) -> st
 
 
 def test_a_killed_shard_is_all_a_resubmission_runs(tmp_path, inline_run):
-    """SIGTERM (what scancel sends) to shard 2's job as soon as it is submitted: the
+    """SIGTERM (what scancel sends) to shard.index=1's job as soon as it is submitted: the
     publish job names the shard, --status shows it and the job's last log lines, and the
     next launch runs that shard alone, to the bytes of launcher=inline."""
     _pipeline(tmp_path)
@@ -119,13 +119,13 @@ def test_a_killed_shard_is_all_a_resubmission_runs(tmp_path, inline_run):
     _, err = proc.communicate(timeout=300)
     assert proc.returncode == 1, err.decode()
     message = err.decode().strip().splitlines()[-1]
-    assert "shards 2/4 did not finish" in message and "objects.jobs" in message
+    assert "shard.index 1 (shard.count=4) did not finish" in message and "objects.jobs" in message
     assert not (tmp_path / "out/objects").exists() and not (tmp_path / "out/depth").exists()
 
     code, out, err2 = _status(tmp_path)
     assert code == 0, err2
     row = next(line for line in out.splitlines() if line.startswith("│ objects"))
-    assert "failed" in row and "missing shards 2/4" in out
+    assert "failed" in row and "missing shard.index 1" in " ".join(out.split())
     assert "waiting" in out  # depth: its input is not made
     assert "did not finish" in out  # the publish job's last log lines
 
@@ -300,7 +300,6 @@ def test_job_records_are_json(tmp_path, monkeypatch, fake_slurm):
     assert _scripts(fake_slurm)[depth]["dependency"] == f"afterok:{submission['jobs'][-1]['id']}"
 
 
-@pytest.mark.slow
 def test_smoke_pipeline_local_gives_the_bytes_of_inline(tmp_path, monkeypatch):
     """Every stage of the smoke pipeline as a separate process (issue 22's target): the
     same data files as launcher=inline, except the wall-clock timings files."""
@@ -371,7 +370,7 @@ def _state(state, role="shard", shard=0, shards=4):
             ("partial", [1], 6),
             [_state("COMPLETED"), _state("FAILED", shard=1)],
             "failed",
-            "missing shards 2/4",
+            "missing shard.index 1 (shard.count=4)",
         ),
         (("partial", [1], 6), [_state("CANCELLED", shard=1)], "failed", "cancelled"),
         (("none", [0], 6), [_state("UNKNOWN")], "submitted", "state unknown"),

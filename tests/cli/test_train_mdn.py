@@ -187,7 +187,9 @@ def test_predict_refuses_unknown_category_missing_and_foreign_models(tiny_model,
     code, _, err = run_cli(*base, "--category", "sofa")
     assert code == 2 and "unknown category 'sofa'" in err
     code, _, err = run_cli(*base, "--category", "drawer", "--model", str(tmp_path / "none.pt"))
-    assert code == 2 and "no model for drawer" in err
+    assert code == 2 and f"--model {tmp_path / 'none.pt'}: no such file" in err
+    code, _, err = run_cli(*base, "--category", "drawer")
+    assert code == 2 and "no mdn model for drawer" in err and "artic pipeline ch3" in err
     code, _, err = run_cli(*base, "--category", "drawer", "--model", str(tiny_model / "model.pt"))
     assert code == 2 and "a model of category microwave, not drawer" in err
     save_model_file(tmp_path / "other.pt", "point-segmenter", "microwave", {}, {}, {})

@@ -43,7 +43,7 @@ class JobSpec:
 
     @property
     def name(self) -> str:
-        return f"shard {self.shard + 1}/{self.shards}" if self.role == "shard" else self.role
+        return f"shard.index={self.shard}" if self.role == "shard" else self.role
 
 
 @dataclass
@@ -209,9 +209,7 @@ def _said(job: StageJob) -> str:
     if job.shards == 1:
         return f"{job.name}: job {ids[0]}"
     shards = (
-        f"{job.shards} shards"
-        if len(job.todo) == job.shards
-        else f"shards {shard_names(job.todo, job.shards)}"
+        f"{job.shards} shards" if len(job.todo) == job.shards else shard_names(job.todo, job.shards)
     )
     array = ids[0].split("_")[0] if len(ids) > 2 else ids[0]
     return f"{job.name}: {shards} as array job {array}, then publish job {ids[-1]}"

@@ -107,6 +107,32 @@ def read_mask(path: Path, shape: tuple[int, ...]) -> NDArray[np.bool_]:
     return np.asarray(mask) != 0
 
 
+def camera_presets() -> dict[str, Path]:
+    """The named cameras (`kinect_v1`, `thesis_sim`, ...): conf/common/camera/*.yaml."""
+    from artic.config.compose import conf_dir
+
+    return {p.stem: p for p in sorted((conf_dir() / "common" / "camera").glob("*.yaml"))}
+
+
+def read_camera_arg(value: str) -> Any:
+    """`--camera`: a camera preset's name, or a JSON file of intrinsics (`read_camera`).
+    An existing file wins over a preset of the same name."""
+    import yaml
+
+    from artic.geometry.camera import CameraIntrinsics
+
+    path = Path(value)
+    if path.is_file() or path.suffix.lower() == ".json" or "/" in value:
+        return read_camera(path)
+    presets = camera_presets()
+    if value not in presets:
+        raise InputError(
+            f"--camera {value}: neither a JSON file nor a camera preset "
+            f"(presets: {', '.join(presets)})"
+        )
+    return CameraIntrinsics.model_validate(yaml.safe_load(presets[value].read_text()))
+
+
 def read_camera(path: Path) -> Any:
     from pydantic import ValidationError
 

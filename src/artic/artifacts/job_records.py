@@ -106,7 +106,7 @@ class JobState:
 
     @property
     def name(self) -> str:
-        return f"shard {self.shard + 1}/{self.shards}" if self.role == "shard" else self.role
+        return f"shard.index={self.shard}" if self.role == "shard" else self.role
 
 
 def job_states(out: Path, slurm_state: Callable[[Path, str], str]) -> list[JobState]:
@@ -178,7 +178,7 @@ def describe(progress: Progress, jobs: Sequence[JobState]) -> tuple[str, str]:
     if progress.state == "partial" and progress.n_chunks:
         chunks = f"{progress.chunks_done}/{progress.n_chunks} chunks"
     if progress.state == "partial" and progress.missing and shards > 1:
-        missing = f"missing shards {shard_names(progress.missing, shards)}"
+        missing = f"missing {shard_names(progress.missing, shards)}"
     if active:
         word = "running" if any(j.state.startswith("RUNNING") for j in active) else "pending"
         return word, ", ".join(x for x in (chunks, "jobs " + _ids(active)) if x)

@@ -10,7 +10,9 @@ not invalidate them.
 from __future__ import annotations
 
 import platform
+import subprocess
 from datetime import UTC, datetime
+from functools import cache
 from importlib import metadata
 from pathlib import Path
 from typing import Any, Literal
@@ -37,6 +39,9 @@ _TRACKED_PACKAGES = (
     "pydantic",
     "pillow",
     "torch",
+    "plyfile",
+    "stable-baselines3",
+    "gymnasium",
 )
 
 
@@ -64,6 +69,8 @@ class Manifest(BaseModel):
     config_hash: str
     seed: int | None
     inputs: dict[str, InputRecord]
+    #: the config-group options (`debug: tiny`, `experiment: ch3_cpu`); absent in older files
+    choices: dict[str, str] = {}
     outputs: dict[str, FileRecord]
     content_hash: str
     versions: dict[str, str]
@@ -78,12 +85,35 @@ def package_versions() -> dict[str, str]:
     the kernel pins in force (`artic.reproducibility`)."""
     out = {"python": platform.python_version(), "artic": __version__,
            "numerics": numerics_record()}  # fmt: skip
+    commit = source_commit()
+    if commit:
+        out["artic_commit"] = commit
     for name in _TRACKED_PACKAGES:
         try:
             out[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             continue
     return out
+
+
+@cache
+def source_commit() -> str:
+    """The git commit of the artic source running (`abc123def456`, `-dirty` appended when
+    the checkout has uncommitted changes outside ignored files), or "" when artic is not
+    running from a git checkout (an installed wheel)."""
+    root = Path(__file__).resolve().parents[3]
+    if not (root / ".git").exists() or not (root / "src" / "artic").is_dir():
+        return ""
+    try:
+        git = ["git", "-C", str(root)]
+        rev = [*git, "rev-parse", "--short=12", "HEAD"]
+        head = subprocess.run(rev, capture_output=True, text=True, timeout=10, check=True)
+        status = [*git, "status", "--porcelain", "--untracked-files=no"]
+        dirty = subprocess.run(status, capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    commit = head.stdout.strip()
+    return f"{commit}-dirty" if dirty else commit
 
 
 def now_iso() -> str:

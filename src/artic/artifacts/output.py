@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -113,6 +113,8 @@ class ManifestHead:
     config_hash: str
     seed: int
     inputs: dict[str, InputRecord]
+    #: the config-group options the config was composed from (debug, experiment, ...)
+    choices: dict[str, str] = field(default_factory=dict)
 
 
 def publish(
@@ -130,6 +132,7 @@ def publish(
             config_hash=head.config_hash,
             seed=head.seed,
             inputs=head.inputs,
+            choices=head.choices,
             outputs=outputs,
             content_hash=outputs_hash(outputs),
             versions=package_versions(),

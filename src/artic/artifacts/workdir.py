@@ -304,8 +304,8 @@ def shards_of_chunks(chunks: set[int] | list[int], shard_count: int) -> list[int
 
 
 def shard_names(shards: Sequence[int], shard_count: int) -> str:
-    """0-based shards as the CLI names them: "2/4, 4/4"."""
-    return ", ".join(f"{s + 1}/{shard_count}" for s in shards)
+    """Shards as the user gave them: "shard.index 1, 3 (shard.count=4)"."""
+    return f"shard.index {', '.join(str(s) for s in shards)} (shard.count={shard_count})"
 
 
 @dataclass

@@ -1,303 +1,58 @@
-"""`artic segment`, `artic build-hierarchy` and `artic infer-hierarchy`: one scan (PLY) in,
-one output folder out (docs/hierarchy.md, docs/formats.md "Hierarchies (Chapter 4)").
-
-- segment SCAN -> DIR/parts.ply (points, part_id, motion_type, confidence) and
-  DIR/segmentation.json; DIR defaults to `<scan stem>_segmented/` beside the scan.
-- build-hierarchy PARTS (a PLY with part_id) -> DIR/hierarchy.json, object.urdf,
-  meshes/, hierarchy.png; DIR defaults to `<stem>_hierarchy/` beside the file, or, for
-  the parts.ply of a segment output `X_segmented/`, to `X_hierarchy/` beside it.
-- infer-hierarchy SCAN -> both: hierarchy.json, object.urdf, meshes/, parts.ply,
-  hierarchy.png; DIR defaults to `<scan stem>_hierarchy/`.
-
-Inputs are checked before any work: a missing, empty or non-PLY file, NaN or infinite
-coordinates, fewer points than the segmenter needs, or millimetre units (unless
-`--scale auto`, which divides by 1000 and says so) exit with code 2 and one line. A
-cloud above `--max-points` is handled by working on a seeded random subset (logged);
-every input point still gets a label. Outputs are in metres.
+"""`artic segment`, `artic build-hierarchy` and `artic infer-hierarchy` from the command
+line: the commands themselves (one scan in, one output folder out) are
+`artic.hierarchy.commands`; here, running one of them with the CLI's failure mapping and
+printing its Rich summary.
 """
 
 from __future__ import annotations
 
 import logging
-import traceback
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import ParamSpec
 
 import numpy as np
-from numpy.typing import NDArray
 
-from artic.artifacts.manifest import LOG
-from artic.artifacts.ply import write_ply
-from artic.artifacts.scan_file import read_scan, require_points
-from artic.artifacts.scan_outputs import (
-    OutputFolder,
-    check_output_folder,
-    default_out,
-    write_document,
-    write_text_files,
-)
 from artic.cli.stage_runner import InternalError
-from artic.errors import InputError
-from artic.evaluation.hierarchy_plot import draw_hierarchy
-from artic.hierarchy.infer import MAX_POINTS
-from artic.hierarchy.models import find_labeller, find_segmenter, hierarchy_config
-from artic.hierarchy.report import (
-    hierarchy_document,
-    input_info,
-    part_subset,
-    robot_name,
-    rounded_timings,
-    segmentation_document,
+from artic.hierarchy.commands import (
+    CommandFailed,
+    CommandResult,
+    Options,
+    run_build_hierarchy,
+    run_infer_hierarchy,
+    run_segment,
 )
 from artic.objects.tree import MOTION_TYPES
 
-if TYPE_CHECKING:
-    from artic.hierarchy.infer import HierarchyResult, LabelledHierarchy, ScanSegmentation
-
-__all__ = ["Options", "print_summary", "run_build_hierarchy", "run_infer_hierarchy", "run_segment"]
+__all__ = [
+    "Options",
+    "print_summary",
+    "run",
+    "run_build_hierarchy",
+    "run_infer_hierarchy",
+    "run_segment",
+]
 
 log = logging.getLogger("artic")
 
-
-@dataclass(frozen=True)
-class Options:
-    """The settings shared by the three commands (recorded in the manifest)."""
-
-    category: str | None = None  # None: storage_furniture for default model paths, unchecked
-    scale: str = "1"  # "auto" or a positive factor applied to the coordinates
-    max_points: int = MAX_POINTS
-    seed: int = 0
+P = ParamSpec("P")
 
 
-@dataclass(frozen=True)
-class CommandResult:
-    """What a command did, for the summary: the folder, the parts, the tree."""
-
-    command: str
-    out: Path
-    num_parts: int
-    points: int
-    hierarchy: LabelledHierarchy | None = None
-    timings: dict[str, float] = field(default_factory=dict)
-
-
-def _options_dict(opts: Options, models: dict[str, Path]) -> dict[str, Any]:
-    return {
-        "category": opts.category,
-        "scale": opts.scale,
-        "max_points": opts.max_points,
-        "seed": opts.seed,
-        **{name: str(path) for name, path in models.items()},
-    }
-
-
-def _write(folder: OutputFolder, command: str, body: Any) -> None:
-    """Run `body(folder.path)`; on failure leave no half-written output (bad input) or
-    keep DIR.partial/ with the traceback in its log (internal error, exit 1)."""
+def run(command: Callable[P, CommandResult], *args: P.args, **kwargs: P.kwargs) -> None:
+    """Run one of the commands and print its summary; a failure while it wrote its output
+    folder is an internal error (exit 1) naming the folder's log."""
     try:
-        body(folder.path)
-    except InputError:
-        folder.abandon()
-        raise
-    except Exception as err:
-        log.error("internal error in %s:\n%s", command, traceback.format_exc())
-        folder.close_log()
-        raise InternalError(f"{command}: {type(err).__name__}: {err}", folder.path / LOG) from err
-
-
-def run_segment(
-    scan_path: Path, model: Path | None, out: Path | None, opts: Options
-) -> CommandResult:
-    """`artic segment`: parts.ply + segmentation.json."""
-    from artic.hierarchy.infer import required_points, segment_scan
-
-    scan = read_scan(scan_path, opts.scale, opts.max_points, opts.seed)
-    out = out or default_out(scan_path, "segment")
-    check_output_folder(out, "segment")  # every input before the models are loaded
-    segmenter, model_path = find_segmenter(model, opts.category)
-    require_points(scan, required_points(segmenter.model))
-    cfg = hierarchy_config(segmenter, None, opts.max_points)
-    folder = OutputFolder(
-        out,
-        "segment",
-        _options_dict(opts, {"model": model_path}),
-        {"scan": scan_path, "model": model_path},
-    )
-    done: list[ScanSegmentation] = []
-
-    def body(tmp: Path) -> None:
-        rng = np.random.default_rng(opts.seed)
-        seg = segment_scan(scan.points, segmenter.model, cfg, rng)
-        done.append(seg)
-        comments = ["artic segment", f"source {scan_path.name}", "frame input, metres"]
-        write_ply(
-            tmp / "parts.ply",
-            scan.points,
-            seg.part_id,
-            seg.motion_type,
-            seg.part_confidence[seg.part_id],
-            comments,
-        )
-        worked_on = input_info(scan.path, len(scan.points), scan.factor, len(seg.sampled))
-        models = {"segmenter": str(model_path), "category": segmenter.category}
-        document = segmentation_document(seg, worked_on, models)
-        write_document(tmp / "segmentation.json", document)
-
-    _write(folder, "segment", body)
-    seg = done[0]
-    folder.publish(opts.seed, {"parts": seg.num_parts, "points": len(scan.points)})
-    return CommandResult("segment", out, seg.num_parts, len(scan.points), None, seg.timings)
-
-
-def _write_hierarchy_files(
-    tmp: Path,
-    points: NDArray[np.float32],
-    part_id: NDArray[np.int64],
-    hierarchy: LabelledHierarchy,
-    document: dict[str, Any],
-    name: str,
-) -> None:
-    """hierarchy.json, object.urdf, meshes/ and hierarchy.png of a hierarchy over the
-    parts of `points` (M, 3) / `part_id` (M,)."""
-    from artic.hierarchy.urdf import TreeUrdfConfig, tree_to_urdf
-
-    write_document(tmp / "hierarchy.json", document)
-    files = tree_to_urdf(hierarchy.tree, points, part_id, TreeUrdfConfig(name=robot_name(name)))
-    write_text_files(tmp, {"object.urdf": files.urdf, **files.meshes})
-    draw_hierarchy(tmp / "hierarchy.png", points, part_id, hierarchy.tree, name)
-
-
-def run_build_hierarchy(
-    parts_path: Path, model: Path | None, out: Path | None, opts: Options
-) -> CommandResult:
-    """`artic build-hierarchy`: hierarchy.json, object.urdf + meshes, hierarchy.png."""
-    from artic.hierarchy.infer import build_hierarchy
-
-    scan = read_scan(parts_path, opts.scale, opts.max_points, opts.seed)
-    if scan.part_id is None:
-        raise InputError(
-            f"{parts_path}: no part_id property; segment the scan first (artic segment)"
-        )
-    if scan.part_id.min() < 0:
-        raise InputError(f"{parts_path}: part_id must be >= 0 for every point")
-    out = out or default_out(parts_path, "build-hierarchy")
-    check_output_folder(out, "build-hierarchy")  # every input before the model is loaded
-    labeller, model_path = find_labeller(model, opts.category)
-    input_ids, inverse = np.unique(scan.part_id, return_inverse=True)
-    part_id = inverse.astype(np.int64)
-    cfg = hierarchy_config(None, labeller, opts.max_points)
-    keep = part_subset(part_id, opts.max_points, opts.seed)
-    work, work_id = scan.points[keep], part_id[keep]
-    folder = OutputFolder(
-        out,
-        "build-hierarchy",
-        _options_dict(opts, {"model": model_path}),
-        {"parts": parts_path, "model": model_path},
-    )
-    done: list[LabelledHierarchy] = []
-
-    def body(tmp: Path) -> None:
-        rng = np.random.default_rng(opts.seed)
-        hierarchy = build_hierarchy(work, work_id, labeller.model, cfg, rng)
-        done.append(hierarchy)
-        extra = {
-            "input": input_info(scan.path, len(scan.points), scan.factor, len(keep)),
-            "models": {
-                "segmenter": None,
-                "labeller": str(model_path),
-                "category": labeller.category,
-            },
-            "timings_s": rounded_timings(hierarchy.timings),
-            "urdf": "object.urdf",
-        }
-        document = hierarchy_document(hierarchy, part_id, None, input_ids.tolist(), extra)
-        _write_hierarchy_files(tmp, work, work_id, hierarchy, document, parts_path.stem)
-
-    _write(folder, "build-hierarchy", body)
-    hierarchy = done[0]
-    folder.publish(opts.seed, {"parts": hierarchy.tree.num_parts, "points": len(scan.points)})
-    return CommandResult(
-        "build-hierarchy",
-        out,
-        hierarchy.tree.num_parts,
-        len(scan.points),
-        hierarchy,
-        hierarchy.timings,
-    )
-
-
-def run_infer_hierarchy(
-    scan_path: Path,
-    segmenter_model: Path | None,
-    labeller_model: Path | None,
-    out: Path | None,
-    opts: Options,
-) -> CommandResult:
-    """`artic infer-hierarchy`: hierarchy.json, object.urdf + meshes, parts.ply,
-    hierarchy.png."""
-    from artic.hierarchy.infer import infer_hierarchy, required_points
-
-    scan = read_scan(scan_path, opts.scale, opts.max_points, opts.seed)
-    out = out or default_out(scan_path, "infer-hierarchy")
-    check_output_folder(out, "infer-hierarchy")  # every input before the models are loaded
-    segmenter, seg_path = find_segmenter(segmenter_model, opts.category)
-    labeller, lab_path = find_labeller(labeller_model, opts.category)
-    require_points(scan, required_points(segmenter.model))
-    cfg = hierarchy_config(segmenter, labeller, opts.max_points)
-    models = {"segmenter": seg_path, "labeller": lab_path}
-    folder = OutputFolder(
-        out, "infer-hierarchy", _options_dict(opts, models), {"scan": scan_path, **models}
-    )
-    done: list[HierarchyResult] = []
-
-    def body(tmp: Path) -> None:
-        rng = np.random.default_rng(opts.seed)
-        result = infer_hierarchy(scan.points, segmenter.model, labeller.model, cfg, rng)
-        done.append(result)
-        seg, hierarchy = result.segmentation, result.hierarchy
-        extra = {
-            "input": input_info(scan.path, len(scan.points), scan.factor, len(seg.sampled)),
-            "models": {
-                "segmenter": str(seg_path),
-                "labeller": str(lab_path),
-                "category": labeller.category,
-            },
-            "timings_s": rounded_timings(result.timings),
-            "urdf": "object.urdf",
-            "ply": "parts.ply",
-        }
-        document = hierarchy_document(hierarchy, seg.part_id, seg.part_confidence, None, extra)
-        work = scan.points[seg.sampled]
-        _write_hierarchy_files(
-            tmp, work, seg.part_id[seg.sampled], hierarchy, document, scan_path.stem
-        )
-        motion = np.asarray(hierarchy.tree.motion_types, dtype=np.int64)[seg.part_id]
-        comments = [
-            "artic infer-hierarchy",
-            f"source {scan_path.name}",
-            "frame input, metres",
-            "motion_type: the part's, as in hierarchy.json",
-        ]
-        write_ply(
-            tmp / "parts.ply",
-            scan.points,
-            seg.part_id,
-            motion,
-            seg.part_confidence[seg.part_id],
-            comments,
-        )
-
-    _write(folder, "infer-hierarchy", body)
-    result = done[0]
-    folder.publish(opts.seed, {"parts": result.num_parts, "points": len(scan.points)})
-    return CommandResult(
-        "infer-hierarchy", out, result.num_parts, len(scan.points), result.hierarchy, result.timings
-    )
+        result = command(*args, **kwargs)
+    except CommandFailed as err:
+        raise InternalError(str(err), err.log_path) from err
+    print_summary(result)
 
 
 def print_summary(result: CommandResult) -> None:
-    """Parts, joints and timings as Rich tables, then the output folder (not under -q)."""
+    """Parts, joints and timings as Rich tables, the models used, then the output folder
+    (not under -q; a debug model's warning is always shown, on stderr)."""
+    for choice in result.models:
+        if choice.warning:
+            log.warning("%s: %s", result.command, choice.warning)
     if not logging.getLogger().isEnabledFor(logging.INFO):
         return
     from rich.console import Console
@@ -326,4 +81,6 @@ def print_summary(result: CommandResult) -> None:
             console.print(table)
     steps = ", ".join(f"{k} {v:.3f} s" for k, v in result.timings.items())
     console.print(f"timings: {steps}")
+    for choice in result.models:
+        console.print(f"{choice.kind}: {choice.describe()}")
     console.print(f"output: {result.out}")

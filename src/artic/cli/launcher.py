@@ -61,7 +61,7 @@ def run_job(spec: JobSpec) -> str:
         p = stage_progress(stage, overrides, spec.shards)
         if p.missing:
             raise JobsFailed(
-                f"{p.out}: not published, shards {shard_names(p.missing, spec.shards)} did "
+                f"{p.out}: not published, {shard_names(p.missing, spec.shards)} did "
                 f"not finish ({p.chunks_done} of {p.n_chunks} chunks done); submit the "
                 "pipeline again to run them",
                 None,

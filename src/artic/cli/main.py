@@ -34,7 +34,7 @@ app = typer.Typer(
     "kinematic models. Each subcommand is a stage: it reads files and writes one output "
     "folder with a manifest.json. Config overrides are Hydra-style KEY=VALUE arguments.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     pretty_exceptions_enable=False,
 )
 
@@ -42,7 +42,11 @@ _OVERRIDES = typer.Argument(None, help="Hydra overrides, e.g. category=drawer da
 _CFG = typer.Option(False, "--cfg", help="Print the resolved config and exit.")
 _FORCE = typer.Option(False, "--force", help="Recompute even if the output is up to date.")
 _EXTRA = {"allow_extra_args": False, "ignore_unknown_options": True}
-_TASK = typer.Option(None, "--task", help="Chapter 5 task: drawer, microwave, tball (= task=NAME)")
+_TASK = typer.Option(
+    None,
+    "--task",
+    help="the task (= task=NAME): Chapter 5 drawer, microwave, tball; Chapter 6 traj, door, push",
+)
 
 
 def _with_task(overrides: list[str] | None, task: str | None) -> list[str]:
@@ -62,13 +66,16 @@ def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, forc
     """Run the stage behind `artic COMMAND OVERRIDES` (a stage name, or an alias)."""
     from artic.cli.stage_runner import resolved_config, run_stage
     from artic.cli.summary import print_result
+    from artic.config.compose import validate
 
     entry = resolve(command, overrides)
     stage = load_stage(entry.name)
     if cfg:
         import yaml
 
-        typer.echo(yaml.safe_dump(resolved_config(stage, list(overrides or [])), sort_keys=False))
+        raw = resolved_config(stage, list(overrides or []))
+        validate(stage.schema, raw)  # as the run would: a config it refuses is not printed
+        typer.echo(yaml.safe_dump(raw, sort_keys=False))
         say_alias(command, entry)
         return
     result = run_stage(stage, list(overrides or []), force=force)
@@ -124,8 +131,11 @@ for _group, _typer in GROUPS.items():
 def predict(
     image: Path = typer.Argument(..., help="depth image: .npy (float metres) or 16-bit .png (mm)"),
     category: str = typer.Option(..., "--category", help="object category (one model each)"),
-    camera: Path = typer.Option(
-        ..., "--camera", help="intrinsics JSON: fx, fy, cx, cy, width, height"
+    camera: str = typer.Option(
+        ...,
+        "--camera",
+        help="camera preset (kinect_v1, kinect_v1_128, thesis_sim) or intrinsics JSON: "
+        "fx, fy, cx, cy, width, height",
     ),
     mask: Path | None = typer.Option(
         None, "--mask", help="object mask (.png or .npy, nonzero = object)"
@@ -137,13 +147,16 @@ def predict(
         help="most-likely (3.3.1: largest-weight component) | densest | max-point (Table 3.2)",
     ),
     model: Path | None = typer.Option(
-        None, "--model", help="model.pt (default: artifacts/models/mdn/CATEGORY/model.pt)"
+        None,
+        "--model",
+        help="model.pt (default: artifacts/models/mdn/CATEGORY/ if trained here, else the "
+        "shipped model; see artic models)",
     ),
     seed: int = typer.Option(0, "--seed", help="seed of the samples"),
 ) -> None:
     """Kinematic model, configuration and geometry from one depth image, as JSON.
 
-    Example: artic predict depth.png --category microwave --camera kinect.json --samples 100
+    Example: artic predict depth.png --category microwave --camera kinect_v1 --samples 100
     """
     import json
     import time
@@ -153,6 +166,21 @@ def predict(
 
     result = predict_image(image, category, camera, model, mask, samples, estimator, seed, started)
     typer.echo(json.dumps(result, indent=2))
+
+
+@app.command("models")
+@handle_errors
+def models_command(
+    as_json: bool = typer.Option(False, "--json", help="one JSON document instead of a table"),
+) -> None:
+    """The model store: shipped models and those trained here (artifacts/models/), with
+    their category, size, preset, config and data hashes, commit and evaluation figures.
+
+    Example: artic models
+    """
+    from artic.cli.models import show_models
+
+    show_models(as_json)
 
 
 _SCALE = typer.Option(
@@ -173,7 +201,7 @@ def segment_command(
     scan: Path = typer.Argument(..., help="point cloud (.ply, metres)"),
     category: str | None = _CATEGORY4,
     model: Path | None = typer.Option(
-        None, "--model", help="default: artifacts/models/segmenter/CATEGORY/model.pt"
+        None, "--model", help="default: the store's segmenter (artic models)"
     ),
     out: Path | None = typer.Option(None, "--out", help="default: <scan stem>_segmented/"),
     scale: str = _SCALE,
@@ -184,9 +212,9 @@ def segment_command(
 
     Example: artic segment scan.ply --category storage_furniture
     """
-    from artic.cli.infer_hierarchy import Options, print_summary, run_segment
+    from artic.cli.infer_hierarchy import Options, run, run_segment
 
-    print_summary(run_segment(scan, model, out, Options(category, scale, max_points, seed)))
+    run(run_segment, scan, model, out, Options(category, scale, max_points, seed))
 
 
 @app.command("build-hierarchy")
@@ -195,7 +223,7 @@ def build_hierarchy_command(
     parts: Path = typer.Argument(..., help="segmented point cloud (.ply with part_id)"),
     category: str | None = _CATEGORY4,
     model: Path | None = typer.Option(
-        None, "--model", help="default: artifacts/models/hierarchy/CATEGORY/model.pt"
+        None, "--model", help="default: the store's labeller (artic models)"
     ),
     out: Path | None = typer.Option(None, "--out", help="default: <name>_hierarchy/"),
     scale: str = _SCALE,
@@ -206,10 +234,10 @@ def build_hierarchy_command(
 
     Example: artic build-hierarchy scan_segmented/parts.ply
     """
-    from artic.cli.infer_hierarchy import Options, print_summary, run_build_hierarchy
+    from artic.cli.infer_hierarchy import Options, run, run_build_hierarchy
 
     opts = Options(category, scale, max_points, seed)
-    print_summary(run_build_hierarchy(parts, model, out, opts))
+    run(run_build_hierarchy, parts, model, out, opts)
 
 
 @app.command("infer-hierarchy")
@@ -219,10 +247,10 @@ def infer_hierarchy_command(
     out: Path | None = typer.Option(None, "--out", help="default: <scan stem>_hierarchy/"),
     category: str | None = _CATEGORY4,
     segmenter: Path | None = typer.Option(
-        None, "--segmenter", help="default: artifacts/models/segmenter/CATEGORY/model.pt"
+        None, "--segmenter", help="default: the store's (artic models)"
     ),
     labeller: Path | None = typer.Option(
-        None, "--labeller", help="default: artifacts/models/hierarchy/CATEGORY/model.pt"
+        None, "--labeller", help="default: the store's (artic models)"
     ),
     scale: str = _SCALE,
     max_points: int = _MAX_POINTS,
@@ -233,10 +261,10 @@ def infer_hierarchy_command(
 
     Example: artic infer-hierarchy scan.ply --out scan_hierarchy
     """
-    from artic.cli.infer_hierarchy import Options, print_summary, run_infer_hierarchy
+    from artic.cli.infer_hierarchy import Options, run, run_infer_hierarchy
 
     opts = Options(category, scale, max_points, seed)
-    print_summary(run_infer_hierarchy(scan, segmenter, labeller, out, opts))
+    run(run_infer_hierarchy, scan, segmenter, labeller, out, opts)
 
 
 _FORCE_ALL = typer.Option(False, "--force", help="Recompute every stage.")
@@ -248,35 +276,64 @@ _DRY_RUN = typer.Option(False, "--dry-run", help="List the stages and exit.")
 def pipeline(
     name: str = typer.Argument(..., help="stages/NAME.yaml, or a path to a pipeline file"),
     variables: list[str] | None = typer.Argument(
-        None, help="pipeline variables NAME=VALUE (declared under vars: in the file)"
+        None,
+        help="pipeline variables NAME=VALUE (declared under vars: in the file); "
+        "launcher=inline|local|slurm and launcher.KEY=VALUE (docs/cluster.md)",
     ),
     force: bool = _FORCE_ALL,
     dry_run: bool = _DRY_RUN,
+    status: bool = typer.Option(
+        False, "--status", help="Per stage: done, running, failed or missing shards."
+    ),
 ) -> None:
     """Run a chain of stages from stages/NAME.yaml, skipping those that are up to date.
 
-    Example: artic pipeline smoke;  artic pipeline bootstrap task=tball
+    Example: artic pipeline smoke;  artic pipeline bootstrap task=tball;
+    artic pipeline ch3_paper launcher=slurm
     """
     from artic.cli.pipeline import parse_vars, run_pipeline
+    from artic.config.launcher import load_launcher, split_launcher_args
 
-    run_pipeline(name, force=force, dry_run=dry_run, values=parse_vars(list(variables or [])))
+    launcher_name, launcher_overrides, rest = split_launcher_args(list(variables or []))
+    run_pipeline(
+        name,
+        force=force,
+        dry_run=dry_run,
+        values=parse_vars(rest),
+        launcher=load_launcher(launcher_name, launcher_overrides),
+        status=status,
+    )
 
 
 @app.command("bootstrap")
 @handle_errors
 def bootstrap(
     task: str = typer.Option("drawer", "--task", help="drawer, microwave or tball"),
+    overrides: list[str] | None = typer.Argument(
+        None,
+        help="KEY=VALUE given to every stage that takes it (seeds=2 updates=10); "
+        "launcher=... as for artic pipeline",
+    ),
     force: bool = _FORCE_ALL,
     dry_run: bool = _DRY_RUN,
 ) -> None:
     """Algorithm 1 for one task: plan demos, fit the policy, policy search from it and from
     random init, evaluate (the pipeline stages/bootstrap.yaml).
 
-    Example: artic bootstrap --task drawer
+    Example: artic bootstrap --task drawer;  artic bootstrap --task drawer seeds=2 updates=10
     """
     from artic.cli.pipeline import run_pipeline
+    from artic.config.launcher import load_launcher, split_launcher_args
 
-    run_pipeline("bootstrap", force=force, dry_run=dry_run, values={"task": task})
+    launcher_name, launcher_overrides, rest = split_launcher_args(list(overrides or []))
+    run_pipeline(
+        "bootstrap",
+        force=force,
+        dry_run=dry_run,
+        values={"task": task},
+        launcher=load_launcher(launcher_name, launcher_overrides),
+        extra=rest,
+    )
 
 
 def _version(value: bool) -> None:

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from artic.artifacts.hashing import sha256_json
 from artic.artifacts.manifest import LOG, InputRecord, Manifest, now_iso, read_manifest
 from artic.artifacts.output import (
     ManifestHead,
@@ -30,18 +29,18 @@ from artic.artifacts.output import (
     stop_log,
     up_to_date,
 )
-from artic.artifacts.workdir import WorkDir, chunks_of_shard, shards_of_chunks
+from artic.artifacts.workdir import WorkDir, chunks_of_shard, key_of, shards_of_chunks
 from artic.artifacts.workers import (
     Terminated,
     available_cpus,
     run_chunks,
     terminate_as_interrupt,
 )
-from artic.cli.progress import progress
 from artic.cli.registry import stage_entries
 from artic.cli.stage import C, Plan, Stage
-from artic.config.compose import compose, validate
+from artic.config.compose import Composed, compose, compose_with_choices, validate
 from artic.errors import InputError, Interrupted
+from artic.progress import progress
 
 __all__ = ["InternalError", "Plan", "Result", "Stage", "resolved_config", "run_stage"]
 
@@ -70,6 +69,12 @@ def resolved_config(stage: Stage[Any], overrides: list[str]) -> dict[str, Any]:
     return compose(stage.conf, with_preset(stage, overrides))
 
 
+def composed_config(stage: Stage[Any], overrides: list[str]) -> Composed:
+    """The resolved config and the config-group options (debug, experiment, ...) it came
+    from; the manifest records both."""
+    return compose_with_choices(stage.conf, with_preset(stage, overrides))
+
+
 def with_preset(stage: Stage[Any], overrides: list[str]) -> list[str]:
     """`overrides` with the stage's `preset` in front (a preset given again is taken
     once; the same key with another value is bad input)."""
@@ -90,17 +95,20 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
     Everything that can be checked is checked before anything is created: the config,
     `out`, the inputs (manifests and their integrity) and the plan. The rest runs with
     the work area's lock held only around state changes (see `artifacts.workdir`)."""
-    raw = resolved_config(stage, overrides)
+    composed = composed_config(stage, overrides)
+    raw = composed.config
     cfg = validate(stage.schema, raw)
     out = Path(cfg.out)
     check_out(out)
     inputs = _read_inputs(stage, cfg)
     paths = {k: Path(r.path) for k, r in inputs.items()}
     plan = stage.plan(cfg, paths)
+    if stage.one_chunk and plan.n_chunks != 1:
+        raise RuntimeError(f"{stage.name}: declared one_chunk, planned {plan.n_chunks} chunks")
     # an input is identified by its content hash, not by where it lies
     config_hash = config_hash_of(stage.name, raw, stage.inputs)
     input_hashes = {k: r.content_hash for k, r in inputs.items()}
-    key = sha256_json({"config": config_hash, "inputs": input_hashes})
+    key = key_of(config_hash, input_hashes)
     shard, shards = cfg.shard.index, cfg.shard.count
 
     work = WorkDir(out)
@@ -128,20 +136,20 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
                 if not todo:
                     missing = sorted(set(range(plan.n_chunks)) - finished)
                     if missing:
-                        names = ", ".join(
-                            f"{s + 1}/{shards}" for s in shards_of_chunks(missing, shards)
-                        )
+                        names = ", ".join(str(s) for s in shards_of_chunks(missing, shards))
                         msg = (
-                            f"shard {shard + 1}/{shards} finished; {len(finished)} of "
-                            f"{plan.n_chunks} chunks done; shards {names} still to run (or "
-                            "the command without shard.*) to finish"
+                            f"shard.index={shard} (shard.count={shards}) finished; "
+                            f"{len(finished)} of {plan.n_chunks} chunks done; shard.index "
+                            f"{names} still to run (or the command without shard.*) to finish"
                         )
                         return Result("partial", out, None, msg)
                     stats = stage.finalize(cfg, paths, work.path)
                     stop_log(handler)
                     manifest = publish(
                         work,
-                        ManifestHead(stage.name, raw, config_hash, cfg.seed, inputs),
+                        ManifestHead(
+                            stage.name, raw, config_hash, cfg.seed, inputs, composed.choices
+                        ),
                         stats,
                         started,
                         t0,

@@ -9,7 +9,10 @@ has a `dataset` config group.
 
 from __future__ import annotations
 
+import difflib
 import os
+import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -23,9 +26,9 @@ _RESOLVERS_REGISTERED = False
 
 
 def _data_root() -> Path:
-    """Where the shipped `conf/` and `stages/` are: inside the installed package (a wheel
-    copies them to `artic/conf/` and `artic/stages/` at build time), else the top level of
-    the repository (an editable install or a checkout)."""
+    """Where the shipped `conf/`, `stages/` and `models/` are: inside the installed package
+    (a wheel copies them to `artic/conf/`, ... at build time), else the top level of the
+    repository (an editable install or a checkout)."""
     from importlib import resources
 
     package = resources.files("artic")
@@ -52,6 +55,12 @@ def stages_dir() -> Path:
     return _data_root() / "stages"
 
 
+def models_dir() -> Path:
+    """The shipped model store (`models/`, packaged like `conf/`), or `$ARTIC_MODELS`."""
+    env = os.environ.get("ARTIC_MODELS")
+    return Path(env) if env else _data_root() / "models"
+
+
 def _register_resolvers() -> None:
     global _RESOLVERS_REGISTERED
     if _RESOLVERS_REGISTERED:
@@ -65,12 +74,27 @@ def _register_resolvers() -> None:
     _RESOLVERS_REGISTERED = True
 
 
+@dataclass(frozen=True)
+class Composed:
+    """A resolved config and the config-group options it was composed from
+    (`{"category": "microwave", "debug": "tiny"}`: Hydra's `runtime.choices`, groups left
+    unset and Hydra's own groups left out)."""
+
+    config: dict[str, Any]
+    choices: dict[str, str]
+
+
 def compose(stage: str, overrides: list[str]) -> dict[str, Any]:
     """The resolved config of `stage` (a folder name under conf/) with Hydra overrides."""
+    return compose_with_choices(stage, overrides).config
+
+
+def compose_with_choices(stage: str, overrides: list[str]) -> Composed:
+    """`compose`, and which option of each config group it used."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf, open_dict
     from omegaconf.errors import OmegaConfBaseException
 
     _register_resolvers()
@@ -78,12 +102,51 @@ def compose(stage: str, overrides: list[str]) -> dict[str, Any]:
     search = f"hydra.searchpath=[file://{root / 'common'}]"
     try:
         with initialize_config_dir(config_dir=str(root / stage), version_base=None):
-            cfg = hydra_compose("config", overrides=[*overrides, search])
+            cfg = hydra_compose("config", overrides=[*overrides, search], return_hydra_config=True)
+        runtime = OmegaConf.to_container(cfg.hydra.runtime.choices)
+        with open_dict(cfg):
+            del cfg["hydra"]
         container = OmegaConf.to_container(cfg, resolve=True)
     except (HydraException, OmegaConfBaseException, ValueError) as err:
+        unknown = _UNKNOWN_KEY.search(str(err))
+        if unknown:
+            raise InputError(_unknown_key(stage, unknown.group(1))) from None
         raise InputError(f"config: {_one_line(err)}") from None
-    assert isinstance(container, dict)
-    return {str(k): v for k, v in container.items() if k != "hydra"}
+    assert isinstance(container, dict) and isinstance(runtime, dict)
+    choices = {
+        str(k): str(v)
+        for k, v in runtime.items()
+        if v is not None and not str(k).startswith("hydra/")
+    }
+    return Composed({str(k): v for k, v in container.items()}, choices)
+
+
+#: Hydra's "Could not override 'train.epoch'. To append to your config use +train.epoch=3"
+_UNKNOWN_KEY = re.compile(r"Could not override '([^']+)'")
+
+
+def config_keys(tree: Any, prefix: str = "") -> list[str]:
+    """Every dotted key of a config tree (`train`, `train.epochs`, ...)."""
+    if not isinstance(tree, dict):
+        return []
+    keys: list[str] = []
+    for k, v in tree.items():
+        key = f"{prefix}{k}"
+        keys += [key, *config_keys(v, key + ".")]
+    return keys
+
+
+def _unknown_key(stage: str, key: str) -> str:
+    """One line for an override of a key the stage's config does not have, with the
+    closest existing keys (instead of Hydra's hint to add it with `+`, which the stage's
+    schema would refuse anyway)."""
+    try:
+        keys = config_keys(compose(stage, []))
+    except InputError:
+        keys = []
+    close = difflib.get_close_matches(key, keys, n=3, cutoff=0.6)
+    hint = f"; did you mean {' or '.join(close)}?" if close else ""
+    return f"config: no key '{key}' in the {stage.replace('_', '-')} config{hint}"
 
 
 def validate(schema: type[M], config: dict[str, Any]) -> M:

@@ -15,7 +15,7 @@
 
 Results are records with the time each step took (seconds, `time.perf_counter`). Part
 labels are returned for every input point, in input order. No file access here: the
-commands in `artic.cli.infer_hierarchy` read the scan (`artifacts.scan_file`) and write
+commands in `artic.hierarchy.commands` read the scan (`artifacts.scan_file`) and write
 the outputs (`hierarchy.report`, `artifacts.scan_outputs`).
 """
 

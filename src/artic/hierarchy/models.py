@@ -10,7 +10,8 @@ the cloud is downsampled to must match training), kind "part-segmenter".
 Both wrap `artic.artifacts.model_file`, which refuses, by name, a file of another kind,
 another category or another format. The loaded network is in evaluation mode, on `device`.
 `find_segmenter` / `find_labeller`: the model a command was given, or by default the
-category's trained one under artifacts/models/; `hierarchy_config`: the `HierarchyConfig`
+category's model as the model store chooses it (trained here under artifacts/models/,
+else shipped); `hierarchy_config`: the `HierarchyConfig`
 the loaded models were trained for.
 """
 
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from artic.artifacts.model_file import load_model_file, save_model_file
+from artic.artifacts.model_store import ModelChoice, choose_model
 from artic.errors import InputError
 
 if TYPE_CHECKING:
@@ -38,9 +40,6 @@ if TYPE_CHECKING:
 
 SEGMENTER_KIND = "part-segmenter"
 LABELLER_KIND = "hierarchy-gnn"
-#: the trained models of a category, by default: ROOT/<category>/model.pt
-SEGMENTER_ROOT = Path("artifacts/models/segmenter")
-LABELLER_ROOT = Path("artifacts/models/hierarchy")
 DEFAULT_CATEGORY = "storage_furniture"
 _NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
@@ -164,32 +163,30 @@ def load_labeller(
     return LoadedLabeller(model, graph, str(payload["category"]), dict(payload["meta"]))
 
 
-def _model_path(model: Path | None, category: str | None, root: Path, what: str) -> Path:
-    """`model`, or the category's default model file (InputError when there is none)."""
+def _choose(model: Path | None, category: str | None, kind: str, option: str) -> ModelChoice:
+    """`model`, or the category's model as the store chooses it (local, else shipped:
+    `artifacts.model_store.choose_model`); InputError when there is none."""
     if category is not None and not _NAME.match(category):
         raise InputError(f"--category: '{category}' is not a category name")
-    name = category or DEFAULT_CATEGORY
-    path = model or root / name / "model.pt"
-    if model is None and not path.is_file():
-        stage = "train-segmenter" if root == SEGMENTER_ROOT else "train-hierarchy"
-        raise InputError(
-            f"{path}: no {what} for {name}; train one with: artic {stage} category={name}"
-        )
-    return path
+    return choose_model(kind, category or DEFAULT_CATEGORY, model, option)
 
 
-def find_segmenter(model: Path | None, category: str | None) -> tuple[LoadedSegmenter, Path]:
-    """The segmenter at `model` (None: SEGMENTER_ROOT/<category>/model.pt, category
-    default storage_furniture), checked to be of `category` when given, and its path."""
-    path = _model_path(model, category, SEGMENTER_ROOT, "segmenter")
-    return load_segmenter(path, category), path
+def find_segmenter(
+    model: Path | None, category: str | None, option: str = "--segmenter"
+) -> tuple[LoadedSegmenter, ModelChoice]:
+    """The segmenter at `model` (None: the store's choice for `category`, default
+    storage_furniture), checked to be of `category` when given, and where it came from."""
+    choice = _choose(model, category, "segmenter", option)
+    return load_segmenter(choice.path, category), choice
 
 
-def find_labeller(model: Path | None, category: str | None) -> tuple[LoadedLabeller, Path]:
-    """The graph labelling network at `model` (None: LABELLER_ROOT/<category>/model.pt),
-    as `find_segmenter`, and its path."""
-    path = _model_path(model, category, LABELLER_ROOT, "hierarchy model")
-    return load_labeller(path, category), path
+def find_labeller(
+    model: Path | None, category: str | None, option: str = "--labeller"
+) -> tuple[LoadedLabeller, ModelChoice]:
+    """The graph labelling network at `model` (None: the store's choice), as
+    `find_segmenter`."""
+    choice = _choose(model, category, "hierarchy", option)
+    return load_labeller(choice.path, category), choice
 
 
 def hierarchy_config(

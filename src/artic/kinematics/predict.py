@@ -14,6 +14,7 @@ Estimators (`ESTIMATORS`):
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,8 @@ from artic.kinematics.mdn import KinematicsMDN, Mixture, densest, most_likely, s
 from artic.kinematics.preprocess import InputPipeline
 from artic.kinematics.targets import TargetCodec
 from artic.objects.labels import joint_column, joint_vector
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -191,7 +194,7 @@ class Predictor:
 def predict_image(
     image: Path,
     category: str,
-    camera: Path,
+    camera: str,
     model: Path | None,
     mask: Path | None,
     samples: int,
@@ -201,11 +204,13 @@ def predict_image(
 ) -> dict[str, Any]:
     """Everything `artic predict` prints, as a dict: `describe` of the depth image
     `image` (masked by `mask`, reprojected into the training camera when `camera`
-    differs) with the category's model (default artifacts/models/mdn/CATEGORY/model.pt),
-    its inputs and timings since `started` (`time.perf_counter`)."""
+    differs; `camera` a JSON file or a camera preset's name) with the category's model
+    (`model`, else the store's choice: `artifacts.model_store.choose_model`), its inputs,
+    warnings and timings since `started` (`time.perf_counter`)."""
     import time
 
-    from artic.artifacts.depth_image import read_camera, read_depth, read_mask
+    from artic.artifacts.depth_image import read_camera_arg, read_depth, read_mask
+    from artic.artifacts.model_store import choose_model
     from artic.geometry.camera import reproject
     from artic.kinematics import ESTIMATORS
     from artic.objects.categories import CATEGORIES
@@ -216,18 +221,18 @@ def predict_image(
         known = ", ".join(sorted(CATEGORIES))
         raise InputError(f"--category: unknown category '{category}' (available: {known})")
     depth = read_depth(image)
-    cam = read_camera(camera)
+    cam = read_camera_arg(camera)
+    result_warnings: list[str] = []
     if depth.shape != (cam.height, cam.width):
         raise InputError(
             f"{camera}: intrinsics are for {cam.width}x{cam.height}, "
             f"{image} is {depth.shape[1]}x{depth.shape[0]}"
         )
     object_mask = read_mask(mask, depth.shape) if mask else None
-    path = model or Path("artifacts/models/mdn") / category / "model.pt"
-    if not path.is_file():
-        raise InputError(
-            f"{path}: no model for {category}; train one with: artic train-mdn category={category}"
-        )
+    choice = choose_model("mdn", category, model, "--model")
+    if choice.warning:
+        result_warnings.append(choice.warning)
+    path = choice.path
     predictor = Predictor.load(path, category)
     reprojected = cam != predictor.camera
     if object_mask is not None:
@@ -242,7 +247,13 @@ def predict_image(
     result["input"] = {
         "image": str(image),
         "model": str(path),
+        "model_source": choice.source,  # given | local (artifacts/models/) | shipped
+        "camera": camera if Path(camera).is_file() else f"preset {camera}",
         "reprojected_to_training_camera": bool(reprojected),
     }
+    if result_warnings:
+        result["warnings"] = result_warnings
+        for warning in result_warnings:  # once the answer is there: errors stay one line
+            log.warning("predict: %s", warning)
     result["timing_s"] = {"load_and_prepare": round(t1 - started, 4), "predict": round(t2 - t1, 4)}
     return result

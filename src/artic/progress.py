@@ -1,4 +1,5 @@
-"""Progress for long work: a Rich bar on a terminal, plain log lines otherwise."""
+"""Progress for long work: a Rich bar on a terminal, plain log lines otherwise (the stage
+runner's chunks; nothing of artic imported, so any package can report through it)."""
 
 from __future__ import annotations
 

@@ -1,0 +1,54 @@
+"""Put a trained model into the shipped model store (`models/`), for maintainers.
+
+    python scripts/ship_model.py artifacts/models/mdn/microwave \
+        --evaluation artifacts/reports/mdn/microwave
+
+Copies the training output's model.pt, writes card.json (preset, config and data hashes,
+the commit it was trained at, the evaluation's figures) and model_card.md with the
+figures appended (`artic.artifacts.model_store.ship_model`). The commit is read with git
+from the checkout the model folder lies in; a model trained with a debug preset is
+refused. docs/models.md says how the shipped models were made.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+from pathlib import Path
+
+from artic.artifacts.model_store import ship_model
+from artic.errors import InputError
+
+STORE = Path(__file__).resolve().parents[1] / "models"
+
+
+def _commit(folder: Path) -> str:
+    """The commit of the git checkout `folder` is in ("unknown" outside one)."""
+    done = subprocess.run(
+        ["git", "-C", str(folder), "rev-parse", "--short=12", "HEAD"],
+        capture_output=True,
+        text=True,
+    )
+    return done.stdout.strip() if done.returncode == 0 else "unknown"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description="ship a trained model with its card")
+    parser.add_argument(
+        "folder", type=Path, help="a train-mdn / train-segmenter / train-hierarchy output"
+    )
+    parser.add_argument("--evaluation", type=Path, help="the evaluate output of this very model")
+    parser.add_argument("--commit", help="default: the git commit of the folder's checkout")
+    parser.add_argument("--preset", default="", help="when the manifest predates recording it")
+    parser.add_argument("--store", type=Path, default=STORE)
+    args = parser.parse_args()
+    commit = args.commit or _commit(args.folder)
+    try:
+        target = ship_model(args.folder, args.evaluation, args.store, commit, args.preset)
+    except InputError as err:
+        raise SystemExit(f"error: {err}") from None
+    print(f"shipped: {target}")  # noqa: T201
+
+
+if __name__ == "__main__":
+    main()

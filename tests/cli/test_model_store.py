@@ -1,0 +1,177 @@
+"""The model store: `artic models`, the default model of a command (local, else shipped,
+never a debug model), shipping a model with its card, and `--camera` presets."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from artic.artifacts.depth_dataset import DepthDataset
+from artic.artifacts.manifest import MANIFEST
+from artic.artifacts.model_store import (
+    CARD_JSON,
+    choose_model,
+    list_models,
+    read_card,
+    ship_model,
+)
+from artic.errors import InputError
+from cli_runner import run_cli
+
+
+@pytest.fixture(scope="module")
+def trained(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A tiny microwave MDN (debug=tiny) and its evaluation."""
+    root = tmp_path_factory.mktemp("store")
+    model, report = root / "model", root / "report"
+    code, _, err = run_cli(
+        "train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}", f"out={model}"
+    )
+    assert code == 0, err
+    code, _, err = run_cli(
+        "evaluate", "mdn", "debug=tiny", "category=microwave", f"model={model}",
+        f"depth={tiny_depth}", f"out={report}",
+    )  # fmt: skip
+    assert code == 0, err
+    return model, report
+
+
+@pytest.fixture(scope="module")
+def depth_png(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A depth image of the tiny dataset, in its camera (kinect_v1_128 by default)."""
+    shard = next(DepthDataset.open(tiny_depth).shards(decode=False))
+    png = tmp_path_factory.mktemp("image") / "depth.png"
+    Image.fromarray(shard.depth[0]).save(png)
+    return png
+
+
+@pytest.fixture
+def workspace(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty working folder (artifacts/ relative to it) and an empty shipped store."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("ARTIC_MODELS", str(tmp_path / "shipped"))
+    return tmp_path
+
+
+def _as_release(model: Path, target: Path) -> Path:
+    """A copy of a training output that says it was trained without a debug preset."""
+    shutil.copytree(model, target)
+    manifest = json.loads((target / MANIFEST).read_text())
+    manifest["choices"] = {"category": "microwave", "experiment": "unit_test"}
+    (target / MANIFEST).write_text(json.dumps(manifest))
+    return target
+
+
+def _predict(png: Path, *extra: str) -> tuple[int, dict, str]:
+    code, out, err = run_cli(
+        "predict", str(png), "--category", "microwave", "--camera", "kinect_v1_128", *extra
+    )
+    return code, (json.loads(out) if code == 0 else {}), err
+
+
+def test_no_model_names_the_pipeline_that_makes_one(workspace, depth_png):
+    code, out, _ = run_cli("models")
+    assert code == 0 and "no models" in out
+    code, _, err = _predict(depth_png)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert "artic pipeline ch3" in line and "minutes" in line and "--model" in line
+
+
+def test_a_debug_model_is_never_the_default_and_is_flagged_when_given(
+    workspace, trained, depth_png
+):
+    model, _ = trained
+    local = workspace / "artifacts/models/mdn/microwave"
+    shutil.copytree(model, local)
+    (listed,) = list_models()
+    assert listed.source == "local" and listed.debug and listed.preset == "debug=tiny"
+    with pytest.raises(InputError, match="no mdn model for microwave"):
+        choose_model("mdn", "microwave", None, "--model")
+    code, result, err = _predict(depth_png, "--model", str(local / "model.pt"))
+    assert code == 0, err
+    assert result["input"]["model_source"] == "given"
+    assert "debug=tiny" in result["warnings"][0] and "debug=tiny" in err
+
+
+def test_ship_refuses_debug_models_and_foreign_evaluations(workspace, trained):
+    model, report = trained
+    with pytest.raises(InputError, match="debug model is never shipped"):
+        ship_model(model, report, workspace / "shipped", "abc123")
+    other = _as_release(model, workspace / "other")
+    manifest = json.loads((other / MANIFEST).read_text())
+    manifest["content_hash"] = "0" * 64  # another model's outputs
+    (other / MANIFEST).write_text(json.dumps(manifest))
+    with pytest.raises(InputError, match="did not evaluate the model"):
+        ship_model(other, report, workspace / "shipped", "abc123")
+    assert not (workspace / "shipped").exists()
+
+
+def test_ship_then_predict_and_list(workspace, trained, depth_png):
+    model, report = trained
+    release = _as_release(model, workspace / "release")
+    folder = ship_model(release, report, workspace / "shipped", "abc123")
+    card = read_card(folder)
+    assert (card.kind, card.category, card.preset, card.commit) == (
+        "mdn", "microwave", "experiment=unit_test", "abc123",
+    )  # fmt: skip
+    assert card.figures and all(k.endswith("pos/rot/config") for k in card.figures)
+    assert "## Shipped with artic" in (folder / "model_card.md").read_text()
+
+    code, result, err = _predict(depth_png)
+    assert code == 0, err
+    assert result["input"]["model_source"] == "shipped"
+    assert result["input"]["model"] == str(folder / "model.pt")
+
+    code, out, err = run_cli("models", "--json")
+    assert code == 0, err
+    (row,) = json.loads(out)
+    assert row["source"] == "shipped" and row["default"] and row["figures"] == card.figures
+
+    # a local model trained without a debug preset wins over the shipped one
+    _as_release(model, workspace / "artifacts/models/mdn/microwave")
+    assert choose_model("mdn", "microwave", None, "--model").source == "local"
+    rows = json.loads(run_cli("models", "--json")[1])
+    assert [(r["source"], r["default"]) for r in rows] == [("local", True), ("shipped", False)]
+    shutil.rmtree(workspace / "artifacts/models")
+
+    # a shipped model.pt that no longer matches its card is refused
+    with (folder / "model.pt").open("ab") as f:
+        f.write(b"\0")
+    code, _, err = _predict(depth_png)
+    assert code == 2 and "does not match its card.json" in err
+    (folder / CARD_JSON).write_text("{}")
+    code, _, err = run_cli("models")
+    assert code == 2 and "card.json: field" in err
+
+
+def test_camera_presets(workspace, trained, depth_png):
+    model, _ = trained
+    code, result, err = _predict(depth_png, "--model", str(model / "model.pt"))
+    assert code == 0, err
+    assert result["input"]["camera"] == "preset kinect_v1_128"
+    assert result["input"]["reprojected_to_training_camera"] is False
+    code, _, err = run_cli(
+        "predict", str(depth_png), "--category", "microwave", "--camera", "kinect_v2",
+        "--model", str(model / "model.pt"),
+    )  # fmt: skip
+    assert code == 2 and "kinect_v1" in err and "neither a JSON file nor a camera preset" in err
+    # the presets are the config group's files, and the example camera file is one of them
+    example = Path(__file__).parents[2] / "examples" / "camera_kinect_v1.json"
+    preset = json.loads(example.read_text())
+    assert preset["fx"] == 525.0 and preset["width"] == 640
+    big = np.zeros((480, 640), np.uint16)
+    big[200:280, 300:340] = 1500
+    Image.fromarray(big).save(workspace / "kinect.png")
+    for camera in ("kinect_v1", str(example)):
+        code, out, err = run_cli(
+            "predict", str(workspace / "kinect.png"), "--category", "microwave",
+            "--camera", camera, "--model", str(model / "model.pt"),
+        )  # fmt: skip
+        assert code == 0, err
+        assert json.loads(out)["input"]["reprojected_to_training_camera"] is True

@@ -1,0 +1,62 @@
+"""The models shipped in `models/`: each card is valid and matches its file, each file
+loads as the network its card names, and none was trained with a debug preset."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from artic.artifacts.hashing import sha256_file
+from artic.artifacts.model_store import KINDS, list_models, read_card
+from artic.hierarchy.models import load_labeller, load_segmenter
+from artic.kinematics.predict import Predictor
+
+STORE = Path(__file__).parents[1] / "models"
+FOLDERS = sorted(p.parent for p in STORE.glob("*/*/card.json"))
+LOADERS = {"mdn": Predictor.load, "segmenter": load_segmenter, "hierarchy": load_labeller}
+
+
+def test_models_ship_for_the_journeys_of_the_demo():
+    shipped = {(p.parent.name, p.name) for p in FOLDERS}
+    assert {("mdn", "microwave"), ("segmenter", "storage_furniture"),
+            ("hierarchy", "storage_furniture")} <= shipped  # fmt: skip
+
+
+@pytest.mark.parametrize("folder", FOLDERS, ids=[f"{p.parent.name}/{p.name}" for p in FOLDERS])
+def test_a_shipped_model_is_what_its_card_says(folder: Path):
+    card = read_card(folder)
+    assert (card.kind, card.category) == (folder.parent.name, folder.name)
+    assert card.stage == KINDS[card.kind].stage
+    assert "debug=" not in card.preset
+    model = folder / "model.pt"
+    assert sha256_file(model) == card.model_sha256 and model.stat().st_size == card.size
+    assert card.figures and card.evaluation_hash and len(card.commit) >= 7
+    assert LOADERS[card.kind](model, card.category) is not None
+    assert "## Shipped with artic" in (folder / "model_card.md").read_text()
+
+
+def test_artic_models_lists_the_shipped_store(monkeypatch: pytest.MonkeyPatch, tmp_path: Path):
+    monkeypatch.delenv("ARTIC_MODELS")
+    monkeypatch.chdir(tmp_path)  # no local models
+    listed = {(m.kind, m.category) for m in list_models() if m.source == "shipped"}
+    assert listed == {(p.parent.name, p.name) for p in FOLDERS}
+
+
+@pytest.mark.slow
+def test_the_demo_journeys_run_on_the_shipped_models(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+):
+    """`make demo`'s second half: a new object, the shipped models, the truth beside."""
+    import subprocess
+    import sys
+
+    monkeypatch.delenv("ARTIC_MODELS")
+    script = Path(__file__).parents[1] / "scripts" / "demo.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "--out", str(tmp_path / "demo")],
+        capture_output=True, text=True, timeout=900, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    for said in ("Chapter 4: kinematic tree", "truth", "Chapter 3:", "model: shipped"):
+        assert said in done.stdout
