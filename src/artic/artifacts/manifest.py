@@ -15,7 +15,7 @@ from datetime import UTC, datetime
 from functools import cache
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
@@ -23,6 +23,8 @@ from artic import __version__
 from artic.artifacts.hashing import sha256_file, sha256_json
 from artic.errors import InputError
 from artic.reproducibility import numerics_record
+
+M = TypeVar("M", bound=BaseModel)
 
 MANIFEST = "manifest.json"
 LOG = "artic.log"
@@ -166,6 +168,17 @@ def read_manifest(folder: Path, expected_stage: str | None = None) -> Manifest:
             f"{folder}: written by stage '{manifest.stage}', expected a '{expected_stage}' output"
         )
     return manifest
+
+
+def read_stage_config(folder: Path, stage: str, schema: type[M]) -> tuple[M, Manifest]:
+    """The config a `stage` output was made with, validated by `schema`, and its manifest;
+    InputError naming the folder when it is not such an output or its config does not
+    validate (an output of another artic version)."""
+    manifest = read_manifest(folder, expected_stage=stage)
+    try:
+        return schema.model_validate(manifest.config), manifest
+    except ValueError as err:
+        raise InputError(f"{folder}: config in its manifest does not validate ({err})") from None
 
 
 def verify_file(folder: Path, manifest: Manifest, rel: str) -> Path:

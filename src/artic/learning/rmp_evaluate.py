@@ -19,7 +19,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from artic.artifacts.formats import read_csv
-from artic.artifacts.manifest import read_manifest, verify_file
+from artic.artifacts.manifest import read_stage_config, verify_file
 from artic.config.schemas import StageConfig
 from artic.errors import InputError
 from artic.learning.rmp_train import CURVE, FORCES, TrainRmpConfig, load_policy, make_env
@@ -68,13 +68,7 @@ class RmpRun:
     @classmethod
     def open(cls, folder: Path, task: str) -> RmpRun:
         """The run in `folder`, checked to be of `task` under both controllers."""
-        manifest = read_manifest(folder, expected_stage="train-rmp")
-        try:
-            cfg = TrainRmpConfig.model_validate(manifest.config)
-        except ValueError as err:
-            raise InputError(
-                f"{folder}: config in its manifest does not validate ({err})"
-            ) from None
+        cfg, manifest = read_stage_config(folder, "train-rmp", TrainRmpConfig)
         if cfg.task.name != task:
             raise InputError(f"policies.{task}: {folder} holds task '{cfg.task.name}'")
         if sorted(cfg.controllers) != sorted(CONTROLLERS):

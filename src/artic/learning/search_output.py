@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import Field
 
 from artic.artifacts.formats import read_csv, read_json
-from artic.artifacts.manifest import read_manifest, verify_file
+from artic.artifacts.manifest import read_stage_config, verify_file
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 from artic.evaluation.bootstrap_report import INITS
@@ -71,13 +71,7 @@ class SearchOutput:
 
     @classmethod
     def open(cls, folder: Path) -> SearchOutput:
-        manifest = read_manifest(folder, expected_stage="policy-search")
-        try:
-            cfg = PolicySearchConfig.model_validate(manifest.config)
-        except ValueError as err:
-            raise InputError(
-                f"{folder}: config in its manifest does not validate ({err})"
-            ) from None
+        cfg, manifest = read_stage_config(folder, "policy-search", PolicySearchConfig)
         verify_file(folder, manifest, CURVE)
         return cls(folder, cfg, manifest)
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from artic.named import Registry
 from artic.objects.model import ArticulatedObject
 from artic.objects.parts import (
     Box,
@@ -24,29 +25,15 @@ from artic.objects.spec import ObjectSpec
 
 Builder = Callable[[ObjectSpec], ArticulatedObject]
 
-CATEGORIES: dict[str, Builder] = {}
+CATEGORIES: Registry[Builder] = Registry("category", "category", "categories")
 """Registered builders by category name; fill it with `@register_category`."""
-
-
-def register_category(name: str) -> Callable[[Builder], Builder]:
-    """Decorator: register `builder(spec) -> ArticulatedObject` under `name`."""
-
-    def decorate(builder: Builder) -> Builder:
-        if name in CATEGORIES:
-            raise ValueError(f"category {name!r} is already registered")
-        CATEGORIES[name] = builder
-        return builder
-
-    return decorate
+#: decorator: register `builder(spec) -> ArticulatedObject` under a name
+register_category = CATEGORIES.register
 
 
 def get_builder(name: str) -> Builder:
-    """The builder registered as `name`; KeyError naming the known categories otherwise."""
-    try:
-        return CATEGORIES[name]
-    except KeyError:
-        known = ", ".join(sorted(CATEGORIES))
-        raise KeyError(f"unknown category {name!r}; known categories: {known}") from None
+    """The builder registered as `name`; InputError naming the known categories otherwise."""
+    return CATEGORIES.lookup(name)
 
 
 def build(spec: ObjectSpec) -> ArticulatedObject:

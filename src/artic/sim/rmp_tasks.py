@@ -16,7 +16,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from artic.errors import InputError
+from artic.named import Registry
 from artic.sim.tasks import RobotConfig
 
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
@@ -135,30 +135,15 @@ class RmpTaskConfig(_Frozen):
 
 
 RmpTaskFactory = Callable[[], RmpTaskConfig]
-RMP_TASKS: dict[str, RmpTaskFactory] = {}
+RMP_TASKS: Registry[RmpTaskFactory] = Registry("task", "RMP task", "RMP tasks")
 """Registered Chapter 6 task factories by name; fill it with `@register_rmp_task`."""
-
-
-def register_rmp_task(name: str) -> Callable[[RmpTaskFactory], RmpTaskFactory]:
-    """Decorator: register a factory returning the default `RmpTaskConfig` of `name`."""
-
-    def decorate(factory: RmpTaskFactory) -> RmpTaskFactory:
-        if name in RMP_TASKS:
-            raise ValueError(f"RMP task {name!r} is already registered")
-        RMP_TASKS[name] = factory
-        return factory
-
-    return decorate
+#: decorator: register a factory returning the default `RmpTaskConfig` of a name
+register_rmp_task = RMP_TASKS.register
 
 
 def get_rmp_task(name: str) -> RmpTaskConfig:
     """The default config of Chapter 6 task `name`; InputError listing the known ones."""
-    try:
-        factory = RMP_TASKS[name]
-    except KeyError:
-        known = ", ".join(sorted(RMP_TASKS))
-        raise InputError(f"task: unknown RMP task {name!r}; known: {known}") from None
-    return factory()
+    return RMP_TASKS.lookup(name)()
 
 
 _DOWN_START = [0.0, 0.6, 0.0, -1.3, 0.0, 1.2, 0.0]  # tool at (0.62, 0, 0.40), z down

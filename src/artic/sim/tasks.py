@@ -20,7 +20,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from artic.errors import InputError
+from artic.named import Registry
 from artic.objects.spec import ObjectSpec, PartsConfig, Pose, Range
 
 Vector7 = Annotated[list[float], Field(min_length=7, max_length=7)]
@@ -195,30 +195,15 @@ class TaskConfig(_Frozen):
 
 
 TaskFactory = Callable[[], TaskConfig]
-TASKS: dict[str, TaskFactory] = {}
+TASKS: Registry[TaskFactory] = Registry("task", "task", "tasks")
 """Registered task factories by name; fill it with `@register_task`."""
-
-
-def register_task(name: str) -> Callable[[TaskFactory], TaskFactory]:
-    """Decorator: register a factory returning the default `TaskConfig` of `name`."""
-
-    def decorate(factory: TaskFactory) -> TaskFactory:
-        if name in TASKS:
-            raise ValueError(f"task {name!r} is already registered")
-        TASKS[name] = factory
-        return factory
-
-    return decorate
+#: decorator: register a factory returning the default `TaskConfig` of a name
+register_task = TASKS.register
 
 
 def get_task(name: str) -> TaskConfig:
     """The default `TaskConfig` of task `name`; InputError listing the known tasks."""
-    try:
-        factory = TASKS[name]
-    except KeyError:
-        known = ", ".join(sorted(TASKS))
-        raise InputError(f"task: unknown task {name!r}; known tasks: {known}") from None
-    return factory()
+    return TASKS.lookup(name)()
 
 
 @register_task("drawer")
