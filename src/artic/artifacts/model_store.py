@@ -188,13 +188,14 @@ def evaluation_of(content_hash: str, reports: Path = REPORTS_ROOT) -> Manifest |
     return max(found, key=lambda m: m.finished_at) if found else None
 
 
-def _local(folder: Path, kind: ModelKind, category: str, reports: Path) -> StoredModel:
+def _local(folder: Path, kind: ModelKind, category: str, reports: Path | None) -> StoredModel:
     manifest = read_manifest(folder, expected_stage=kind.stage)
     model = folder / MODEL_FILE
     if not model.is_file():
         raise InputError(f"{folder}: no {MODEL_FILE}")
     data = next(iter(manifest.inputs.values()), None)
-    evaluation = evaluation_of(manifest.content_hash, reports)
+    # the figures: only for a listing (a command choosing its model need not search reports)
+    evaluation = None if reports is None else evaluation_of(manifest.content_hash, reports)
     return StoredModel(
         kind=kind.name,
         category=category,
@@ -220,8 +221,7 @@ def read_card(folder: Path) -> ModelCard:
         raise InputError(f"{path}: field {field}: {first['msg']}") from None
 
 
-def _shipped(folder: Path) -> StoredModel:
-    card = read_card(folder)
+def _shipped(folder: Path, card: ModelCard) -> StoredModel:
     return StoredModel(
         kind=card.kind,
         category=card.category,
@@ -237,19 +237,26 @@ def _shipped(folder: Path) -> StoredModel:
 
 
 def local_model(
-    kind: str, category: str, root: Path = LOCAL_ROOT, reports: Path = REPORTS_ROOT
+    kind: str, category: str, root: Path = LOCAL_ROOT, reports: Path | None = REPORTS_ROOT
 ) -> StoredModel | None:
-    """The model trained here for `category` (None when there is none)."""
+    """The model trained here for `category` (None when there is none); its figures from
+    the evaluations under `reports` (None: no figures, no search)."""
     folder = root / kind / category
     if not (folder / MODEL_FILE).is_file():
         return None
     return _local(folder, _kind(kind), category, reports)
 
 
+def _shipped_card(kind: str, category: str, store: Path | None) -> tuple[Path, ModelCard] | None:
+    """The folder and card of the shipped model of `kind` for `category`, if one ships."""
+    folder = (store or models_dir()) / _kind(kind).name / category
+    return (folder, read_card(folder)) if (folder / CARD_JSON).is_file() else None
+
+
 def shipped_model(kind: str, category: str, store: Path | None = None) -> StoredModel | None:
     """The shipped model of `kind` for `category` (None when none ships)."""
-    folder = (store or models_dir()) / _kind(kind).name / category
-    return _shipped(folder) if (folder / CARD_JSON).is_file() else None
+    found = _shipped_card(kind, category, store)
+    return None if found is None else _shipped(*found)
 
 
 def list_models(
@@ -301,14 +308,14 @@ def choose_model(
         warning = f"{given} was trained with {debug}: a smoke model, its answers mean nothing"
         return ModelChoice(kind, given, "given", None, warning if debug else "")
     skipped = ""
-    local = local_model(kind, category, root, REPORTS_ROOT)
+    local = local_model(kind, category, root, reports=None)
     if local is not None and not local.debug:
         return ModelChoice(kind, local.path, "local", local)
     if local is not None:
         skipped = f"{local.path} was trained with {local.preset} and is not used by default"
-    shipped = shipped_model(kind, category, store)
-    if shipped is not None:
-        card = read_card(shipped.path.parent)
+    found = _shipped_card(kind, category, store)
+    if found is not None:
+        shipped, card = _shipped(*found), found[1]
         if not shipped.path.is_file() or sha256_file(shipped.path) != card.model_sha256:
             raise InputError(f"{shipped.path}: does not match its {CARD_JSON} (edited or broken)")
         return ModelChoice(kind, shipped.path, "shipped", shipped, skipped)
