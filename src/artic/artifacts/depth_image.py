@@ -1,12 +1,14 @@
 """The inputs of `artic predict`: one depth image (`.npy` float metres, or a 16-bit PNG
 in millimetres; 0 = no return), an optional object mask (PNG or .npy, nonzero = object)
-and the camera intrinsics (JSON with fx, fy, cx, cy, width, height). Each reader raises
-an `InputError` of one line naming the file.
+and the camera intrinsics (a preset's name, or a JSON file: fx, fy, cx, cy, width,
+height, or the layouts of ROS and Open3D, `geometry.camera.camera_from_mapping`). Each
+reader raises an `InputError` of one line naming the file.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from artic.errors import InputError
+
+log = logging.getLogger(__name__)
 
 #: a depth image (metres) whose median return is farther than this is in millimetres
 MAX_DEPTH_M = 20.0
@@ -115,38 +119,71 @@ def camera_presets() -> dict[str, Path]:
 
 
 def read_camera_arg(value: str) -> Any:
-    """`--camera`: a camera preset's name, or a JSON file of intrinsics (`read_camera`).
+    """`--camera`: a camera preset's name, or a camera JSON file (`read_camera`).
     An existing file wins over a preset of the same name."""
+    intrinsics, notes = read_camera_arg_noting(value)
+    for note in notes:
+        log.warning("%s", note)
+    return intrinsics
+
+
+def read_camera_arg_noting(value: str) -> tuple[Any, list[str]]:
+    """`read_camera_arg` with the warning about the file's ignored fields returned (at
+    most one line) instead of logged, for a caller that reports it with its answer."""
     import yaml
 
     from artic.geometry.camera import CameraIntrinsics
 
     path = Path(value)
-    if path.is_file() or path.suffix.lower() == ".json" or "/" in value:
-        return read_camera(path)
+    if path.is_file() or path.suffix.lower() in (".json", ".yaml", ".yml") or "/" in value:
+        return read_camera_noting(path)
     presets = camera_presets()
     if value not in presets:
         raise InputError(
             f"--camera {value}: neither a JSON file nor a camera preset "
             f"(presets: {', '.join(presets)})"
         )
-    return CameraIntrinsics.model_validate(yaml.safe_load(presets[value].read_text()))
+    return CameraIntrinsics.model_validate(yaml.safe_load(presets[value].read_text())), []
 
 
 def read_camera(path: Path) -> Any:
-    from pydantic import ValidationError
+    """`CameraIntrinsics` from a camera JSON file (or YAML: `.yaml`, `.yml`, as ROS
+    camera_info files are) in any layout `camera_from_mapping` reads (artic's six
+    fields, ROS CameraInfo `K`, ROS camera_info's `camera_matrix`, Open3D's
+    `intrinsic_matrix`); fields it does not use are ignored with one warning line
+    (logger `artic`) naming the file and them. Missing or invalid intrinsics:
+    InputError "FILE: field FIELD: why"."""
+    intrinsics, notes = read_camera_noting(path)
+    for note in notes:
+        log.warning("%s", note)
+    return intrinsics
 
-    from artic.geometry.camera import CameraIntrinsics
+
+def read_camera_noting(path: Path) -> tuple[Any, list[str]]:
+    """`read_camera` with the warning (at most one line) returned instead of logged."""
+    import yaml
+
+    from artic.geometry.camera import CameraFieldError, camera_from_mapping
 
     if not path.is_file():
         raise InputError(f"{path}: no such file")
+    as_yaml = path.suffix.lower() in (".yaml", ".yml")  # ROS camera_info files are YAML
     try:
-        return CameraIntrinsics.from_json(path.read_text())
+        text = path.read_text()
+        read = camera_from_mapping(yaml.safe_load(text) if as_yaml else json.loads(text))
     except json.JSONDecodeError as err:
         raise InputError(f"{path}: not JSON ({err.msg})") from None
+    except yaml.YAMLError as err:
+        raise InputError(f"{path}: not YAML ({_first_line(err)})") from None
     except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"{path}: not a readable JSON file ({_first_line(err)})") from None
-    except ValidationError as err:
-        first = err.errors()[0]
-        field = ".".join(str(p) for p in first["loc"]) or "camera"
-        raise InputError(f"{path}: field {field}: {first['msg']}") from None
+        raise InputError(f"{path}: not a readable camera file ({_first_line(err)})") from None
+    except CameraFieldError as err:
+        raise InputError(f"{path}: {err}") from None
+    notes = []
+    if read.ignored:
+        notes.append(
+            f"{path}: ignored field{'s' if len(read.ignored) > 1 else ''} "
+            f"{', '.join(read.ignored)} (read {read.layout} intrinsics: "
+            f"{', '.join(f'{k}={v}' for k, v in read.intrinsics.model_dump().items())})"
+        )
+    return read.intrinsics, notes

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 from pydantic import Field
 
@@ -49,6 +50,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
     from artic.artifacts.resume import torch_checkpoint
     from artic.kinematics.data import load_split
     from artic.kinematics.mdn import KinematicsMDN
+    from artic.kinematics.predict import training_domain
     from artic.kinematics.preprocess import InputPipeline
     from artic.kinematics.targets import TargetCodec
     from artic.kinematics.train import fit
@@ -94,6 +96,15 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
         "best_val_nll": state.best_val,
         "train_images": len(train),
         "val_images": len(val),
+        # what predict checks an estimate against (kinematics/predict.py, docs/models.md)
+        "training_domain": training_domain(
+            ds.label_columns,
+            train.labels,
+            ds.info.camera,
+            ds.info.dof,
+            f"labels of the {len(train)} training images",
+            ds.info.noise,
+        ),
     }
     save_model_file(
         tmp / MODEL, MDN_KIND, cfg.category.name, model.hparams, state.best_weights, meta
@@ -105,6 +116,13 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
         "stopped_early": state.stopped_early, "learned_columns": codec.learned_columns,
     })  # fmt: skip
     return state.epoch
+
+
+def _domain_lines(info: dict[str, Any]) -> list[str]:
+    """The card's bullets on what the model was trained on (predict's warnings)."""
+    from artic.kinematics.predict import domain_card_lines
+
+    return domain_card_lines(info["training_domain"], str(info["joint_type"]))
 
 
 def _finalize(
@@ -119,6 +137,7 @@ def _finalize(
         f"early stop: {info['stopped_early']}), device {info['device']}",
         f"- best validation NLL: {info['best_val_nll']:.4f} (standardised label units)",
         f"- predicted columns: {', '.join(info['learned_columns'])}",
+        *_domain_lines(info),
     ], "metrics.csv")  # fmt: skip
     return {
         "category": cfg.category.name,

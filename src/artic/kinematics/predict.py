@@ -10,6 +10,11 @@ Estimators (`ESTIMATORS`):
 - `max-point` (section 3.3.2, Table 3.2): as most-likely, but each joint's axis origin
   is the point of the observed cloud with the highest density under the model's
   marginal over that origin.
+
+What the model was trained on (`TrainingDomain`, in model.pt's meta and model.json as
+`training_domain`, written by `train-mdn`): `domain_warnings` says when an estimate
+lies outside it, the image's camera is not a training camera, or the mixture's weight is
+split between the two hinge sides (docs/kinematics.md, "Warnings").
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from typing import Any
 import numpy as np
 import torch
 from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict
 
 from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
@@ -34,6 +40,87 @@ from artic.objects.labels import joint_column, joint_vector
 
 log = logging.getLogger(__name__)
 
+#: an estimate is outside a training range [lo, hi] beyond this fraction of hi - lo ...
+RANGE_TOLERANCE = 0.1
+#: ... plus this, in the quantity's unit (metres or radians)
+RANGE_TOLERANCE_ABS = 0.01
+#: the mixture is split between hinge sides below this weight on the estimate's side
+SIDE_WEIGHT = 0.8
+#: the geometry columns a training range is recorded for (with each joint's `q` and the
+#: derived `distance`, the norm of (pose_x, pose_y, pose_z): camera to object origin)
+DOMAIN_COLUMNS = ("depth", "width", "height", "pose_yaw")
+
+
+class TrainingDomain(BaseModel):
+    """What an MDN's training images covered (`training_domain` of its meta): the
+    training split's labels' chiralities and [min, max] ranges, and the cameras."""
+
+    model_config = ConfigDict(frozen=True, extra="ignore")
+    source: str
+    images: int
+    chiralities: list[int]
+    ranges: dict[str, tuple[float, float]]
+    cameras: list[CameraIntrinsics]
+    noise: bool | None = None
+
+
+def training_domain(
+    columns: list[str],
+    labels: NDArray[np.float64],
+    camera: CameraIntrinsics,
+    dof: int,
+    source: str,
+    noise: bool | None = None,
+) -> dict[str, Any]:
+    """`TrainingDomain` of training labels (N, L) in `columns` order, as plain data (what
+    a `weights_only` model file can hold). `source` says where the labels come from."""
+    col = {c: i for i, c in enumerate(columns)}
+    keys = [*DOMAIN_COLUMNS, *(joint_column(j, "q") for j in range(dof))]
+    values = {k: labels[:, col[k]] for k in keys}
+    values["distance"] = np.linalg.norm(labels[:, [col[f"pose_{a}"] for a in "xyz"]], axis=1)
+    ranges = {k: (float(v.min()), float(v.max())) for k, v in values.items()}
+    chiralities = sorted({1 if c >= 0 else -1 for c in labels[:, col["chirality"]].tolist()})
+    domain = TrainingDomain(
+        source=source,
+        images=len(labels),
+        chiralities=chiralities,
+        ranges=ranges,
+        cameras=[camera],
+        noise=noise,
+    )
+    return domain.model_dump(mode="json")
+
+
+def _unit(key: str, joint_type: str) -> str:
+    if key in ("pose_yaw",) or (key.endswith("_q") and joint_type == "revolute"):
+        return "rad"
+    return "m"
+
+
+def _camera_text(cam: CameraIntrinsics) -> str:
+    return f"{cam.width}x{cam.height} fx {cam.fx:g} fy {cam.fy:g} cx {cam.cx:g} cy {cam.cy:g}"
+
+
+def domain_card_lines(domain: dict[str, Any], joint_type: str) -> list[str]:
+    """Model-card bullets of a `training_domain` (train-mdn's card)."""
+    d = TrainingDomain.model_validate(domain)
+    sides = ", ".join(f"{c:+d}" for c in d.chiralities)
+    ranges = "; ".join(
+        f"{k} {lo:.3f} to {hi:.3f} {_unit(k, joint_type)}" for k, (lo, hi) in d.ranges.items()
+    )
+    lines = [
+        f"- trained on ({d.source}): chirality {sides}; {ranges}",
+        f"- training camera{'s' if len(d.cameras) > 1 else ''}: "
+        + "; ".join(_camera_text(c) for c in d.cameras)
+        + ("" if d.noise is None else f" ({'with' if d.noise else 'without'} sensor noise)"),
+    ]
+    if len(d.chiralities) == 1:
+        lines.append(
+            f"- one hinge side only (chirality {d.chiralities[0]:+d}, docs/objects.md): an object "
+            "hinged on the other side is answered as its mirror image"
+        )
+    return lines
+
 
 @dataclass(frozen=True)
 class Predictor:
@@ -43,6 +130,8 @@ class Predictor:
     camera: CameraIntrinsics
     dof: int
     joint_type: str
+    #: what the training images covered; None for a model trained before it was recorded
+    domain: TrainingDomain | None = None
 
     @classmethod
     def load(cls, path: Path, category: str | None = None) -> Predictor:
@@ -70,6 +159,15 @@ class Predictor:
                 "the whole image; this artic's MDN reads an object crop: retrain it "
                 "(artic train-mdn)"
             )
+        domain = None
+        if payload["meta"].get("training_domain") is not None:
+            try:
+                domain = TrainingDomain.model_validate(payload["meta"]["training_domain"])
+            except ValidationError as err:
+                where = ".".join(str(p) for p in err.errors()[0]["loc"])
+                raise InputError(
+                    f"{path or 'MDN'}: model meta training_domain.{where}: {err.errors()[0]['msg']}"
+                ) from None
         model = KinematicsMDN(**payload["hparams"])
         model.load_state_dict(payload["state_dict"])
         model.eval()
@@ -80,6 +178,7 @@ class Predictor:
             meta.camera,
             meta.dof,
             meta.joint_type,
+            domain,
         )
 
     @property
@@ -190,6 +289,56 @@ class Predictor:
             out["samples"] = self.codec.decode(draws[0].numpy()).tolist()
         return out
 
+    def domain_warnings(
+        self,
+        label: NDArray[np.float64],
+        weights: NDArray[np.float64],
+        means: NDArray[np.float64],
+        camera: CameraIntrinsics,
+    ) -> list[str]:
+        """One line per concern about an estimate `label` (L,) of an image seen by
+        `camera`, with its mixture's weights (m,) and means (m, L) in label units (as
+        `describe` prints them): (1) the estimate outside the training ranges (beyond
+        `RANGE_TOLERANCE` of a range's width plus `RANGE_TOLERANCE_ABS`) or of a
+        chirality the training data lacked; (2) `camera` not a training camera; (3) less
+        than `SIDE_WEIGHT` of the mixture's weight on the estimate's hinge side. (1) needs
+        the model's `domain`; (2) uses the training camera of any model."""
+        out: list[str] = []
+        col = {c: i for i, c in enumerate(self.codec.columns)}
+        side = 1 if label[col["chirality"]] >= 0 else -1
+        if self.domain is not None:
+            value = {k: float(label[col[k]]) for k in self.domain.ranges if k in col}
+            pose = [label[col[f"pose_{a}"]] for a in "xyz"]
+            value["distance"] = float(np.linalg.norm(pose))
+            outside = []
+            for key, (lo, hi) in self.domain.ranges.items():
+                tol = RANGE_TOLERANCE * (hi - lo) + RANGE_TOLERANCE_ABS
+                if key in value and not lo - tol <= value[key] <= hi + tol:
+                    unit = _unit(key, self.joint_type)
+                    outside.append(f"{key} {value[key]:.3f} {unit} (trained {lo:.3f} to {hi:.3f})")
+            if side not in self.domain.chiralities:
+                outside.append(f"chirality {side:+d} (trained {self.domain.chiralities})")
+            if outside:
+                out.append(
+                    "the estimate lies outside the training data: " + "; ".join(outside)
+                    + " (an answer for an object unlike those trained on is unreliable)"
+                )  # fmt: skip
+        cameras = self.domain.cameras if self.domain is not None else [self.camera]
+        if camera not in cameras:
+            out.append(
+                f"the image's camera ({_camera_text(camera)}) is not the training camera "
+                f"({_camera_text(self.camera)}): the image was reprojected into it"
+            )
+        chirality = np.asarray(means)[:, col["chirality"]]
+        w = np.asarray(weights, dtype=np.float64)
+        on_side = float(w[(chirality >= 0) == (side > 0)].sum() / w.sum())
+        if on_side < SIDE_WEIGHT:
+            out.append(
+                f"the mixture is split between hinge sides: {on_side:.2f} of its weight on "
+                f"chirality {side:+d} (the estimate's), {1 - on_side:.2f} on {-side:+d}"
+            )
+        return out
+
 
 def predict_image(
     image: Path,
@@ -209,7 +358,7 @@ def predict_image(
     warnings and timings since `started` (`time.perf_counter`)."""
     import time
 
-    from artic.artifacts.depth_image import read_camera_arg, read_depth, read_mask
+    from artic.artifacts.depth_image import read_camera_arg_noting, read_depth, read_mask
     from artic.artifacts.model_store import choose_model
     from artic.geometry.camera import reproject
     from artic.kinematics import ESTIMATORS
@@ -221,8 +370,7 @@ def predict_image(
         known = ", ".join(sorted(CATEGORIES))
         raise InputError(f"--category: unknown category '{category}' (available: {known})")
     depth = read_depth(image)
-    cam = read_camera_arg(camera)
-    result_warnings: list[str] = []
+    cam, camera_notes = read_camera_arg_noting(camera)
     if depth.shape != (cam.height, cam.width):
         raise InputError(
             f"{camera}: intrinsics are for {cam.width}x{cam.height}, "
@@ -230,8 +378,8 @@ def predict_image(
         )
     object_mask = read_mask(mask, depth.shape) if mask else None
     choice = choose_model("mdn", category, model, "--model")
-    if choice.warning:
-        result_warnings.append(choice.warning)
+    result_warnings = [choice.warning] if choice.warning else []
+    result_warnings += camera_notes
     path = choice.path
     predictor = Predictor.load(path, category)
     reprojected = cam != predictor.camera
@@ -244,6 +392,11 @@ def predict_image(
     t1 = time.perf_counter()
     result = predictor.describe(depth, None, estimator, samples, seed)  # type: ignore[arg-type]
     t2 = time.perf_counter()
+    label = np.array([result["estimate"][c] for c in predictor.codec.columns])
+    mixture = result["mixture"]
+    result_warnings += predictor.domain_warnings(
+        label, np.array(mixture["weights"]), np.array(mixture["means"]), cam
+    )
     result["input"] = {
         "image": str(image),
         "model": str(path),
@@ -251,9 +404,8 @@ def predict_image(
         "camera": camera if Path(camera).is_file() else f"preset {camera}",
         "reprojected_to_training_camera": bool(reprojected),
     }
-    if result_warnings:
-        result["warnings"] = result_warnings
-        for warning in result_warnings:  # once the answer is there: errors stay one line
-            log.warning("predict: %s", warning)
+    result["warnings"] = result_warnings
+    for warning in result_warnings:  # once the answer is there: errors stay one line
+        log.warning("predict: %s", warning)
     result["timing_s"] = {"load_and_prepare": round(t1 - started, 4), "predict": round(t2 - t1, 4)}
     return result
