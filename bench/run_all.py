@@ -19,11 +19,13 @@
    two threads) with the kernels artic pins (`artic.reproducibility`) and with each
    library's own choice for this CPU, in fresh processes, interleaved: the price of the
    same bytes on every CPU.
+7. Chapter 4 training (`--only segmenter`): a segmenter step of either head with the
+   PointNet++ neighbourhoods computed in the forward pass and cached per cloud.
 
 The benchmarks run with the kernels pinned, as the `artic` command does.
 Prints a Markdown report and writes bench/results/latest.json.
 Usage: python bench/run_all.py [--objects 550 2200] [--scenes 24] [--repeats 5]
-       [--only backends|e2e|network|hierarchy|planning|numerics]
+       [--only backends|e2e|network|hierarchy|segmenter|planning|numerics]
 (--scenes: objects over the three categories, each rendered at 16 configurations)
 """
 
@@ -381,6 +383,15 @@ def numerics_benchmark(repeats: int) -> list[dict[str, object]]:
     return rows
 
 
+def segmenter_benchmark() -> list[dict[str, object]]:
+    """7. Chapter 4 training speed: a segmenter step (`experiment=ch4_cpu`, both heads) with
+    the PointNet++ neighbourhoods computed in the forward pass and precomputed per cloud
+    (bench/segmenter_step.py)."""
+    from segmenter_step import measure
+
+    return [measure(20, [f"model.head={head}"]) for head in ("masks", "votes")]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", type=int, nargs="+", default=[550, 2200])
@@ -388,7 +399,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument(
         "--only",
-        choices=["backends", "e2e", "network", "hierarchy", "planning", "numerics"],
+        choices=["backends", "e2e", "network", "hierarchy", "segmenter", "planning", "numerics"],
         default=None,
     )
     parser.add_argument("--e2e-child", nargs=2, help=argparse.SUPPRESS)
@@ -401,12 +412,13 @@ def main() -> None:
         run = (
             {args.only}
             if args.only
-            else {"backends", "e2e", "network", "hierarchy", "planning", "numerics"}
+            else {"backends", "e2e", "network", "hierarchy", "segmenter", "planning", "numerics"}
         )
         backends = backend_benchmark(args.scenes, args.repeats, tmp) if "backends" in run else []
         e2e = [end_to_end(n, tmp) for n in sorted(args.objects)] if "e2e" in run else []
         network = network_benchmark(tmp) if "network" in run else []
         hierarchy = [hierarchy_benchmark(tmp)] if "hierarchy" in run else []
+        segmenter = segmenter_benchmark() if "segmenter" in run else []
         planning = planning_benchmark(tmp) if "planning" in run else []
         numerics = numerics_benchmark(args.repeats) if "numerics" in run else []
     report = {
@@ -419,6 +431,7 @@ def main() -> None:
         "end_to_end": e2e,
         "network": network,
         "hierarchy": hierarchy,
+        "segmenter": segmenter,
         "planning": planning,
         "numerics": numerics,
     }
@@ -471,6 +484,15 @@ def main() -> None:
               f"| {r['true_parts_graph_s']} / {r['true_parts_labelling_s']} / "
               f"{r['true_parts_tree_s']} / {r['true_parts_joints_s']} s "
               f"| {r['process_wall_s']} s |")  # fmt: skip
+
+    print()
+    print("| segmenter head | step, neighbourhoods in the forward pass | step, cached | speed-up |")
+    print("|---|---|---|---|")
+    for r in segmenter:
+        step = r["step_s"]
+        print(f"| {r['network']['head']} | {step['segmenter']} s "
+              f"| {step.get('segmenter_cached', 'n/a')} s "
+              f"| {r.get('segmenter_speedup', r['segmenter_speedup_estimate'])}x |")  # fmt: skip
 
     print()
     print("| task | env control steps/s | demos planned | median planning s | max | wall s |")

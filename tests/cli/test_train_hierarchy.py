@@ -181,3 +181,31 @@ def test_chapter_4_pipelines_compose(pipeline: str) -> None:
         runner = load_stage(resolve(stage.cmd, list(stage.overrides)).name)
         cfg = validate(runner.schema, resolved_config(runner, list(stage.overrides)))
         assert Path(cfg.out).as_posix() == stage.outs[0]
+
+
+def test_a_segmenters_parts_add_training_graphs(
+    trained: Path, tiny: TinyScans, tmp_path: Path
+) -> None:
+    """`segmenter=`: every cloud also gives the graph of that segmenter's parts; the
+    segmenter is an input of the run (in its manifest)."""
+    seg = tmp_path / "segmenter"
+    code, _, err = run_cli(
+        "train-segmenter", "debug=tiny", "category=storage_furniture", "model.head=votes",
+        f"scans={tiny.scans}", f"out={seg}",
+    )  # fmt: skip
+    assert code == 0, err
+    out = tmp_path / "with_predicted"
+    code, _, err = run_cli(*ARGS, f"scans={tiny.scans}", f"segmenter={seg}", f"out={out}")
+    assert code == 0, err
+    base, more = (json.loads((d / "model.json").read_text()) for d in (trained, out))
+
+    def graphs(info: dict[str, int]) -> int:  # made or skipped
+        return info["train_graphs"] + info["val_graphs"] + info["skipped_clouds"]
+
+    assert graphs(more) == 2 * graphs(base)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert "segmenter" in json.dumps(manifest["inputs"])
+    code, _, err = run_cli(
+        *ARGS, f"scans={tiny.scans}", f"segmenter={tmp_path}/none", f"out={tmp_path}/x"
+    )
+    assert code == 2 and "segmenter" in err.strip().splitlines()[-1]

@@ -140,3 +140,25 @@ def test_experiments_compose(experiment: str) -> None:
     network = cfg.model.network()
     assert network.n_masks == 24 and cfg.data.kinds == ("clean", "noisy")
     assert cfg.train.lr == (1e-4 if experiment == "ch4_paper" else 1e-3)
+
+
+def test_votes_head_trains_chooses_its_radius_and_segments(tiny: TinyScans, tmp_path: Path) -> None:
+    """`model.head=votes`: the clustering radius is chosen on the validation clouds and
+    saved with the model, which `segment` then uses."""
+    out = tmp_path / "votes"
+    radii = "train.cluster_radii=[0.05,0.2]"
+    code, _, err = run_cli(*ARGS, "model.head=votes", radii, f"scans={tiny.scans}", f"out={out}")
+    assert code == 0, err
+    loaded = load_segmenter(out / "model.pt", "storage_furniture")
+    assert loaded.model.config.head == "votes"
+    scores = loaded.meta["cluster_radius_val_map"]
+    assert set(scores) == {"0.05", "0.2"}
+    assert loaded.inference.cluster_radius == float(max(scores, key=lambda r: scores[r]))
+    rows = (out / "metrics.csv").read_text().splitlines()
+    assert "val_offset_error" in rows[0] and "matched_iou" not in rows[0]
+    assert "votes head" in (out / "model_card.md").read_text()
+    ds = ScanDataset.open(tiny.scans)
+    cloud = ds.cloud(ds.select("test", ("noisy",))[0])
+    result = segment(loaded.model, cloud.points, loaded.inference)
+    assert result.part_id.shape == (len(cloud.points),)
+    assert len(result.part_confidence) == result.part_id.max() + 1

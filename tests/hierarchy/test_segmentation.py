@@ -273,7 +273,7 @@ def _train(steps: int, seed: int) -> tuple[PartSegmentationNet, list[float]]:
     model = PartSegmentationNet(tiny_config())
     optimizer = make_optimizer(model, lr=1e-3)  # the thesis' 1e-4 is for long runs
     batch = _batch(*three_boxes(384, 0))
-    totals = [train_step(model, optimizer, batch).total for _ in range(steps)]
+    totals = [train_step(model, optimizer, batch)["total"] for _ in range(steps)]
     return model, totals
 
 

@@ -5,8 +5,12 @@ Input: a render-scan folder (`scans=`). Every clean and noisy scan of a training
 (never the withheld test split) becomes a part graph built from its ground-truth part ids
 (`artic.hierarchy.graph.build_part_graph`), labelled from the object's tree
 (`trees/<id>.json`, `graph_labels`); every `data.val_every`-th training object is held
-out for validation. The PointNet node encoder is pre-trained as a point autoencoder
-(Chamfer distance, Nesterov SGD), then the GraphLabellingNet trains with Adam.
+out for validation. With `segmenter=` (a train-segmenter folder), every cloud also becomes
+the part graph of that segmenter's parts, labelled from the true tree
+(`fit_labeller.predicted_parts_tree`), so the network learns trees over over- and
+under-segmented parts as it will meet them. The PointNet node encoder is pre-trained as a
+point autoencoder (Chamfer distance, Nesterov SGD), then the GraphLabellingNet trains with
+Adam.
 
 One chunk: the whole run, checkpointed after every epoch of either phase in the work
 area's resume folder (with the prepared graphs, as tensors and plain data: no pickles),
@@ -55,6 +59,9 @@ log = logging.getLogger("artic")
 class TrainHierarchyConfig(TrainingStageConfig):
     category: CategoryName
     scans: str = Field(description="a render-scan output folder of the category")
+    segmenter: str | None = Field(
+        None, description="a train-segmenter folder: its parts of every cloud are examples too"
+    )
     graph: PartGraphConfig
     model: GraphNetConfig
     data: CloudDataConfig
@@ -75,9 +82,19 @@ def _cached(
     from artic.artifacts.resume import cached_torch
     from artic.hierarchy.fit_labeller import LabelledGraph, decode, encode, load_examples
 
+    segment_cloud = None
+    if cfg.segmenter is not None:
+        from artic.hierarchy.models import load_segmenter
+        from artic.hierarchy.segmentation import segment
+
+        loaded = load_segmenter(Path(cfg.segmenter) / MODEL, cfg.category.name)
+
+        def segment_cloud(points: Any) -> Any:
+            return segment(loaded.model, points, loaded.inference).part_id
+
     return cached_torch(
         cache,
-        lambda: load_examples(ds, objects, cfg.data, cfg.graph, cfg.seed),
+        lambda: load_examples(ds, objects, cfg.data, cfg.graph, cfg.seed, segment_cloud),
         lambda v: {"examples": [[encode(x) for x in e] for e in v[0]], "skipped": v[1]},
         lambda s: ([LabelledGraph(*(decode(x) for x in e)) for e in s["examples"]],
                    int(s["skipped"])),
@@ -221,6 +238,9 @@ STAGE: Stage[TrainHierarchyConfig] = Stage(
     chunk=train_chunk,
     finalize=_finalize,
     one_chunk=True,
-    inputs={"scans": "render-scan"},
-    input_paths=lambda cfg: {"scans": Path(cfg.scans)},
+    inputs={"scans": "render-scan", "segmenter": "train-segmenter"},
+    input_paths=lambda cfg: (
+        {"scans": Path(cfg.scans)}
+        | ({} if cfg.segmenter is None else {"segmenter": Path(cfg.segmenter)})
+    ),
 )

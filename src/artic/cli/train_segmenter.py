@@ -70,6 +70,7 @@ def _cached_data(
     import numpy as np
 
     from artic.artifacts.resume import cached_npz
+    from artic.hierarchy.cloud_cache import segmenter_cache_dir
     from artic.hierarchy.fit_segmenter import SegmentationData, load_clouds
 
     names = [f.name for f in dataclasses.fields(SegmentationData)]
@@ -77,10 +78,12 @@ def _cached_data(
     def make() -> dict[str, Any]:
         n_points, n_masks = cfg.inference.n_points, cfg.model.n_masks
         data, skipped = load_clouds(ds, objects, cfg.data, n_points, n_masks, cfg.seed)
-        return {"skipped": np.asarray(skipped), **{k: getattr(data, k) for k in names}}
+        arrays = {k: getattr(data, k) for k in names if isinstance(getattr(data, k), np.ndarray)}
+        return {"skipped": np.asarray(skipped), **arrays}
 
     z = cached_npz(cache, make)
-    return SegmentationData(**{k: z[k] for k in names}), int(z["skipped"])
+    data = SegmentationData(**{k: z[k] for k in names if k in z})
+    return data.with_features(cfg.model.network(), segmenter_cache_dir(ds.root)), int(z["skipped"])
 
 
 def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, tmp: Path) -> int:
@@ -88,7 +91,12 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     import torch
 
     from artic.artifacts.resume import torch_checkpoint
-    from artic.hierarchy.fit_segmenter import fit_segmenter, score_segmenter, training_objects
+    from artic.hierarchy.fit_segmenter import (
+        choose_cluster_radius,
+        fit_segmenter,
+        score_segmenter,
+        training_objects,
+    )
     from artic.hierarchy.models import save_segmenter
     from artic.hierarchy.segmentation import PartSegmentationNet
     from artic.learning import trainer
@@ -114,11 +122,13 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
         save(trainer.checkpoint(parts, s))
 
     state = fit_segmenter(
-        model, optimizer, train, val, t, cfg.augment, cfg.seed, state, device, checkpoint
-    )
+        model, optimizer, train, val, t, cfg.augment, cfg.seed, state, device, checkpoint,
+        inference=cfg.inference,
+    )  # fmt: skip
     assert state.best_weights is not None
     model.load_state_dict(state.best_weights)
-    scores = score_segmenter(model, val, cfg.inference)
+    inference, radius_scores = choose_cluster_radius(model, val, cfg.inference, t.cluster_radii)
+    scores = score_segmenter(model, val, inference)
     meta: dict[str, Any] = {
         "data": {"path": str(inputs["scans"]), "content_hash": ds.manifest.content_hash},
         "kinds": list(cfg.data.kinds),
@@ -133,12 +143,14 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
         "val_map_noisy": _finite(scores.map_noisy),
         "val_motion_accuracy": _finite(scores.motion_accuracy),
     }
-    save_segmenter(tmp / MODEL, cfg.category.name, model, cfg.inference, meta)
+    if radius_scores:
+        meta["cluster_radius_val_map"] = {str(r): round(v, 4) for r, v in radius_scores.items()}
+    save_segmenter(tmp / MODEL, cfg.category.name, model, inference, meta)
     write_history(tmp / METRICS, state.history)
     write_epoch_timings(tmp, {"train": state.history})
     info = {k: v for k, v in meta.items() if not k.endswith("_objects")}
     write_json(tmp / "model.json", info | {
-        "network": dataclasses.asdict(model.config), "inference": cfg.inference.model_dump(),
+        "network": dataclasses.asdict(model.config), "inference": inference.model_dump(),
         "device": str(device), "epochs_run": state.epoch, "stopped_early": state.stopped_early,
         "n_train_objects": len(split.train), "n_val_objects": len(split.val),
     })  # fmt: skip
@@ -158,9 +170,16 @@ def _finalize(
         return "n/a" if value is None else f"{value:.3f}"
 
     m = cfg.model
+    head = (
+        f"{m.n_masks} masks + confidence (the thesis' head)"
+        if m.head == "masks"
+        else "per-point offsets to the part centre, parts by clustering (votes head, "
+        f"radius {info['inference']['cluster_radius']} chosen on validation clouds)"
+    )
     about = ("PointNet++ instance segmenter of thesis section 4.3 (after PartNet): "
-             f"{m.n_masks} masks + confidence, motion-type branch; width x{m.width}, "
-             f"{m.norm} norm, input {cfg.inference.n_points} points (FPS).")  # fmt: skip
+             f"{head}, motion-type branch; width x{m.width}, {m.norm} norm, "
+             f"{'normals, ' if m.normals else ''}"
+             f"input {cfg.inference.n_points} points (FPS).")  # fmt: skip
     write_model_card(work, f"Part segmenter for {cfg.category.name}", about, info, [
         f"- clouds: {info['train_clouds']} train, {info['val_clouds']} validation, "
         f"{info['skipped_clouds']} skipped (more parts than masks)",

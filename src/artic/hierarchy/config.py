@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import Field
+from pydantic import Field, PositiveFloat
 
 from artic.config.schemas import Strict
 from artic.learning.trainer import TrainConfig
@@ -40,6 +40,10 @@ class SegmenterModelConfig(Strict):
     centroids: tuple[int, int] = Field((512, 128), description="FPS centroids, levels 1 and 2")
     neighbours: tuple[int, int] = Field((32, 64), description="ball query size, levels 1 and 2")
     radii: tuple[float, float] = Field((0.2, 0.4), description="ball radii (unit-sphere units)")
+    head: Literal["masks", "votes"] = Field(
+        "masks", description="masks: section 4.3's N masks; votes: offsets + clustering"
+    )
+    normals: bool = Field(False, description="per-point normals as input features")
 
     def network(self) -> SegmentationConfig:
         """The architecture these settings describe."""
@@ -57,9 +61,12 @@ class SegmenterModelConfig(Strict):
                 radius=self.radii[i],
             )
         backbone = dataclasses.replace(
-            base.backbone, set_abstractions=tuple(levels), norm=self.norm
+            base.backbone,
+            set_abstractions=tuple(levels),
+            norm=self.norm,
+            in_channels=3 if self.normals else 0,
         )
-        return dataclasses.replace(base, backbone=backbone)
+        return dataclasses.replace(base, backbone=backbone, head=self.head, normals=self.normals)
 
 
 class InferenceConfig(Strict):
@@ -70,6 +77,9 @@ class InferenceConfig(Strict):
     min_points: int = Field(8, ge=0, description="smaller masks are merged away")
     min_fraction: float = Field(0.005, ge=0, lt=1, description="... or smaller than this fraction")
     min_confidence: float = Field(0.1, ge=0, le=1, description="... or less confident")
+    cluster_radius: float = Field(
+        0.12, gt=0, description="votes head: flood-fill radius of the shifted points, cloud radii"
+    )
 
 
 class CloudDataConfig(Strict):
@@ -97,6 +107,11 @@ class SegmenterTrainConfig(TrainConfig):
     batch_size: int = Field(8, ge=2, description="clouds per step (BatchNorm needs >= 2)")
     lr: float = Field(1e-4, gt=0, description="Adam (section 4.3: 1e-4)")
     patience: int = Field(10, gt=0, description="epochs without a better val loss")
+    cluster_radii: tuple[PositiveFloat, ...] = Field(
+        (0.05, 0.08, 0.12, 0.16, 0.2, 0.25, 0.3),
+        description="votes head: radii tried on the validation clouds after training; the "
+        "best mAP@0.5's is saved with the model (empty: keep inference.cluster_radius)",
+    )
 
 
 # --- the graph labelling network (section 4.4) ------------------------------------------

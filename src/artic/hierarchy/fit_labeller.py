@@ -121,6 +121,79 @@ def make_example(
     return LabelledGraph(graph, graph_labels(graph, sub), sub)
 
 
+def predicted_parts_tree(
+    predicted: NDArray[np.integer], part_id: NDArray[np.integer], tree: KinematicTree
+) -> tuple[NDArray[np.int64], KinematicTree] | None:
+    """The target tree over a segmenter's parts of a cloud (issue 18, item 3): every
+    predicted part stands for the ground-truth part most of its labelled points belong to;
+    the largest predicted part of each ground-truth part takes that part's place in the
+    tree (over the present parts, `restrict_tree`), the others hang from it by a fixed
+    joint, static (as a handle from its door). Predicted parts with no labelled point are
+    left out. -> (the predicted part ids kept, sorted; the tree over them in that order),
+    or None when fewer than two parts are kept or the root part is not among them."""
+    pred = np.asarray(predicted, dtype=np.int64)
+    gt = np.asarray(part_id, dtype=np.int64)
+    stands_for: dict[int, int] = {}
+    size: dict[int, int] = {}
+    for q in np.unique(pred):
+        labels = gt[(pred == q) & (gt >= 0)]
+        if len(labels) and labels.max() < tree.num_parts:
+            stands_for[int(q)] = int(np.bincount(labels).argmax())
+            size[int(q)] = int(np.sum(pred == q))
+    kept = sorted(stands_for)
+    present = sorted(set(stands_for.values()))
+    if len(kept) < 2 or tree.root not in present:
+        return None
+    sub = restrict_tree(tree, present)
+    node_of = {g: i for i, g in enumerate(present)}  # ground-truth part -> node of `sub`
+    main: dict[int, int] = {}  # node of `sub` -> its largest predicted part
+    for q in sorted(kept, key=lambda q: (-size[q], q)):
+        main.setdefault(node_of[stands_for[q]], q)
+    index = {q: i for i, q in enumerate(kept)}
+    edges, joints = [], []
+    motion = [0] * len(kept)
+    for node, q in main.items():
+        motion[index[q]] = sub.motion_types[node]
+    for e, (parent, child) in enumerate(sub.edges):  # parents first
+        edges.append((index[main[parent]], index[main[child]]))
+        joints.append(sub.joint_types[e])
+    for q in kept:
+        node = node_of[stands_for[q]]
+        if main[node] != q:
+            edges.append((index[main[node]], index[q]))
+            joints.append("fixed")
+    target = KinematicTree(
+        num_parts=len(kept),
+        root=index[main[sub.root]],
+        edges=tuple(edges),
+        motion_types=tuple(motion),
+        joint_types=tuple(joints),
+    )
+    return np.asarray(kept, dtype=np.int64), target
+
+
+def make_predicted_example(
+    points: NDArray[np.floating],
+    predicted: NDArray[np.integer],
+    part_id: NDArray[np.integer],
+    tree: KinematicTree,
+    rng: np.random.Generator,
+    graph_cfg: PartGraphConfig,
+) -> LabelledGraph | None:
+    """The labelled part graph of a cloud over a segmenter's parts `predicted` (N,),
+    labelled through `predicted_parts_tree` from the ground truth `part_id` (N,) and
+    `tree`; None when that gives no tree."""
+    found = predicted_parts_tree(predicted, part_id, tree)
+    if found is None:
+        return None
+    kept, target = found
+    pred = np.asarray(predicted, dtype=np.int64)
+    inside = np.isin(pred, kept)
+    compact = np.searchsorted(kept, pred[inside])
+    graph = build_part_graph(np.asarray(points)[inside], compact, rng, graph_cfg)
+    return LabelledGraph(graph, graph_labels(graph, target), target)
+
+
 def part_point_sets(examples: Sequence[LabelledGraph]) -> torch.Tensor:
     """Every node's points of every example: (sum of P, K, 3) float32."""
     return torch.from_numpy(np.concatenate([e.graph.node_points for e in examples]))
@@ -253,24 +326,34 @@ def load_examples(
     data: CloudDataConfig,
     graph_cfg: PartGraphConfig,
     seed: int,
+    segment_cloud: Callable[[NDArray[np.float32]], NDArray[np.int64]] | None = None,
 ) -> tuple[list[LabelledGraph], int]:
     """Labelled part graphs of the training clouds of `objects` (kinds and poses per
     `data`; each seeded from (seed, object, pose, noisy)), and the number of clouds
-    skipped (fewer than two parts, or the root hidden)."""
+    skipped (fewer than two parts, or the root hidden). With `segment_cloud` (a
+    segmenter: points -> part ids), every cloud also gives the graph of the segmenter's
+    parts (`make_predicted_example`, seeded from (seed, object, pose, noisy, 1)), so the
+    network learns to build trees on the parts it will see at inference."""
     rows = ds.select("train", data.kinds, objects)
     if data.max_poses is not None:
         rows = [r for r in rows if r.pose < data.max_poses]
     trees = {o: ds.tree(o) for o in objects}
-    examples, skipped = [], 0
+    examples: list[LabelledGraph] = []
+    skipped = 0
     for row in rows:
         cloud = ds.cloud(row)
         assert cloud.part_id is not None
         rng = np.random.default_rng([seed, row.object_id, row.pose, row.kind == "noisy"])
-        example = make_example(cloud.points, cloud.part_id, trees[row.object_id], rng, graph_cfg)
-        if example is None:
-            skipped += 1
-        else:
-            examples.append(example)
+        tree = trees[row.object_id]
+        found = [make_example(cloud.points, cloud.part_id, tree, rng, graph_cfg)]
+        if segment_cloud is not None:
+            rng = np.random.default_rng([seed, row.object_id, row.pose, row.kind == "noisy", 1])
+            predicted = segment_cloud(cloud.points)
+            found.append(
+                make_predicted_example(cloud.points, predicted, cloud.part_id, tree, rng, graph_cfg)
+            )
+        skipped += sum(e is None for e in found)
+        examples.extend(e for e in found if e is not None)
     if not examples:
         raise InputError(f"scans: {ds.root} has no usable clouds of objects {objects[:5]}...")
     return examples, skipped

@@ -1,6 +1,8 @@
 """Training of the section 4.3 part segmenter: Adam (learning rate 1e-4 in the thesis) on
-the Hungarian-matched instance loss + motion-type loss, validation on withheld training
-objects after every epoch, early stopping on the validation loss.
+the Hungarian-matched instance loss + motion-type loss (masks head) or on the offset and
+motion-type losses (votes head, `artic.hierarchy.votes`), validation on withheld training
+objects after every epoch, early stopping on the validation loss. The votes head's
+clustering radius is then chosen on the validation clouds (`choose_cluster_radius`).
 
 Clouds are prepared as `segment` sees them at inference: downsampled to `n_points` by
 farthest-point sampling from point 0 (`prepare_cloud`). Optional augmentation: a random
@@ -13,11 +15,13 @@ as the uninterrupted run. Checkpoints are the caller's (`on_epoch`); no file acc
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -31,14 +35,16 @@ from artic.evaluation.segmentation import (
     object_detections,
 )
 from artic.hierarchy.config import AugmentConfig, CloudDataConfig, SegmenterTrainConfig
-from artic.hierarchy.pointnet2 import farthest_point_indices
+from artic.hierarchy.pointnet2 import BackboneIndex, farthest_point_indices, stack_indices
 from artic.hierarchy.segmentation import (
+    QUALITY,
     InferenceConfig,
     LossWeights,
     PartSegmentationNet,
     SegmentationBatch,
+    SegmentationConfig,
+    run_batch,
     segment,
-    segmentation_loss,
     train_step,
 )
 from artic.learning import trainer
@@ -87,13 +93,17 @@ def prepare_cloud(
 @dataclass(frozen=True)
 class SegmentationData:
     """Prepared clouds: points (C, S, 3) float32, part_id (C, S) int64, motion_type (C, S)
-    int64, object_id (C,) int64, noisy (C,) bool (a fused noisy scan, else clean)."""
+    int64, object_id (C,) int64, noisy (C,) bool (a fused noisy scan, else clean), and
+    after `with_features`: normals (C, S, 3) float32 and every cloud's backbone
+    neighbourhoods (computed once, `cloud_cache`), which batches then carry."""
 
     points: NDArray[np.float32]
     part_id: NDArray[np.int64]
     motion_type: NDArray[np.int64]
     object_id: NDArray[np.int64]
     noisy: NDArray[np.bool_]
+    normals: NDArray[np.float32] | None = None
+    neighbourhoods: list[BackboneIndex] | None = None
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
@@ -117,12 +127,30 @@ class SegmentationData:
             torch.from_numpy(self.points[index]),
             torch.from_numpy(self.part_id[index]),
             torch.from_numpy(self.motion_type[index]),
+            None if self.normals is None else torch.from_numpy(self.normals[index]),
+            None
+            if self.neighbourhoods is None
+            else stack_indices([self.neighbourhoods[i] for i in index]),
+        )
+
+    def with_features(self, config: SegmentationConfig, cache: Path | None) -> SegmentationData:
+        """The same clouds with their normals and neighbourhoods under `config`, read from
+        or written to the content-keyed `cache` folder (`cloud_cache.cloud_features`)."""
+        from artic.hierarchy.cloud_cache import cloud_features
+
+        features = [cloud_features(p, config, cache) for p in self.points]
+        normals = np.stack([f.normals for f in features]).astype(np.float32)
+        return dataclasses.replace(
+            self, normals=normals, neighbourhoods=[f.neighbourhoods for f in features]
         )
 
 
-def augment(points: torch.Tensor, cfg: AugmentConfig, generator: torch.Generator) -> torch.Tensor:
-    """Randomly rotate each cloud of (B, S, 3) about z and jitter its points (CPU generator)."""
-    out = points
+def augment(
+    batch: SegmentationBatch, cfg: AugmentConfig, generator: torch.Generator
+) -> SegmentationBatch:
+    """Randomly rotate each cloud of the batch about z (its normals too) and jitter its
+    points (CPU generator)."""
+    points, normals = batch.points, batch.normals
     if cfg.rotate_z_deg > 0:
         b = points.shape[0]
         angle = (torch.rand(b, generator=generator) * 2 - 1) * math.radians(cfg.rotate_z_deg)
@@ -130,15 +158,16 @@ def augment(points: torch.Tensor, cfg: AugmentConfig, generator: torch.Generator
         rot = torch.zeros(b, 3, 3)
         rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1] = c, -s, s, c
         rot[:, 2, 2] = 1.0
-        out = out @ rot.transpose(1, 2)
+        points = points @ rot.transpose(1, 2)
+        normals = None if normals is None else normals @ rot.transpose(1, 2)
     if cfg.jitter_m > 0:
-        out = out + torch.randn(out.shape, generator=generator) * cfg.jitter_m
-    return out
+        points = points + torch.randn(points.shape, generator=generator) * cfg.jitter_m
+    return batch._replace(points=points, normals=normals)
 
 
 class ValidationRecord(NamedTuple):
     loss: float  # mean total loss per cloud
-    matched_iou: float  # mean soft IoU of the Hungarian-matched masks
+    quality: float  # the head's QUALITY term: matched IoU (masks) or offset error (votes)
     motion_accuracy: float  # fraction of points with the right motion type (argmax)
 
 
@@ -154,26 +183,34 @@ def fit_segmenter(
     device: torch.device,
     on_epoch: Callable[[FitState], None],
     loss: LossWeights | None = None,
+    inference: InferenceConfig | None = None,
 ) -> FitState:
     """Train from `state` until `cfg.epochs` or early stopping (`learning.trainer.fit`);
-    `on_epoch(state)` after each epoch (state.epoch = epochs done)."""
+    `on_epoch(state)` after each epoch (state.epoch = epochs done). With `inference`,
+    every epoch also scores the validation clouds' mAP@0.5 through `segment` (the one
+    measure both heads share, for comparing them)."""
     model.to(device)
     weights = loss or LossWeights()
+    quality = QUALITY[model.config.head][0]
 
     def run_epoch(epoch: int) -> trainer.EpochResult:
-        train_loss, train_iou = train_epoch(
+        train_loss, train_quality = train_epoch(
             model, optimizer, train, cfg, augmentation, seed, epoch, device, weights
         )
         v = validate(model, val, cfg.batch_size, device, weights)
-        return trainer.EpochResult(v.loss, {
-            "train_loss": train_loss, "train_matched_iou": train_iou, "val_loss": v.loss,
-            "val_matched_iou": v.matched_iou, "val_motion_accuracy": v.motion_accuracy,
-        })  # fmt: skip
+        metrics = {
+            "train_loss": train_loss, f"train_{quality}": train_quality, "val_loss": v.loss,
+            f"val_{quality}": v.quality, "val_motion_accuracy": v.motion_accuracy,
+        }  # fmt: skip
+        if inference is not None:
+            scores = score_segmenter(model, val, inference)
+            metrics |= {"val_map50_clean": scores.map_clean, "val_map50_noisy": scores.map_noisy}
+        return trainer.EpochResult(v.loss, metrics)
 
     def summary(r: trainer.EpochResult) -> str:
         m = r.metrics
-        iou = m["val_matched_iou"]
-        return f"train loss {m['train_loss']:.3f}, val loss {r.val_loss:.3f}, val IoU {iou:.3f}"
+        q = m[f"val_{quality}"]
+        return f"train loss {m['train_loss']:.3f}, val loss {r.val_loss:.3f}, val {quality} {q:.3f}"
 
     return trainer.fit(model, state, cfg.epochs, cfg.patience, run_epoch, on_epoch, summary)
 
@@ -190,26 +227,26 @@ def train_epoch(
     weights: LossWeights,
 ) -> tuple[float, float]:
     """One pass over `data` in the order drawn from (seed, epoch); (mean loss, mean
-    matched IoU) per cloud."""
+    QUALITY term) per cloud."""
     order = np.random.default_rng([seed, epoch]).permutation(len(data))
     generator = torch.Generator().manual_seed(seed * 100_003 + epoch)
-    total, iou, seen, last_log = 0.0, 0.0, 0, time.perf_counter()
+    quality = QUALITY[model.config.head][0]
+    total, measure, seen, last_log = 0.0, 0.0, 0, time.perf_counter()
     for start in range(0, len(order), cfg.batch_size):
         index = np.sort(order[start : start + cfg.batch_size])
         if len(index) < 2:
             continue  # BatchNorm needs two clouds per batch in training mode
-        batch = data.batch(index)
-        batch = batch._replace(points=augment(batch.points, augmentation, generator))
-        record = train_step(model, optimizer, batch, weights)
-        total += record.total * len(index)
-        iou += record.matched_iou * len(index)
+        batch = augment(data.batch(index), augmentation, generator)
+        terms = train_step(model, optimizer, batch, weights)
+        total += terms["total"] * len(index)
+        measure += terms[quality] * len(index)
         seen += len(index)
         if time.perf_counter() - last_log > LOG_EVERY_S:
             log.info(
                 "  epoch %d: %d/%d clouds, loss %.3f", epoch + 1, seen, len(data), total / seen
             )
             last_log = time.perf_counter()
-    return total / max(seen, 1), iou / max(seen, 1)
+    return total / max(seen, 1), measure / max(seen, 1)
 
 
 @torch.no_grad()
@@ -220,20 +257,18 @@ def validate(
     device: torch.device,
     weights: LossWeights | None = None,
 ) -> ValidationRecord:
-    """Mean loss, matched IoU and motion-type accuracy of `data` in evaluation mode."""
+    """Mean loss, QUALITY term and motion-type accuracy of `data` in evaluation mode."""
     model.eval()
-    loss, iou, correct, seen = 0.0, 0.0, 0.0, 0
+    quality = QUALITY[model.config.head][0]
+    loss, measure, correct, seen = 0.0, 0.0, 0.0, 0
     for start in range(0, len(data), batch_size):
         index = np.arange(start, min(start + batch_size, len(data)))
-        batch = data.batch(index)
-        out = model(batch.points.to(device))
-        part_id, motion = batch.part_id.to(device), batch.motion_type.to(device)
-        losses = segmentation_loss(out, part_id, motion, weights)
-        loss += float(losses.total) * len(index)
-        iou += float(losses.matched_iou) * len(index)
-        correct += float((out.motion_logits.argmax(-1) == motion).float().mean()) * len(index)
+        losses = run_batch(model, data.batch(index), weights)
+        loss += losses.terms["total"] * len(index)
+        measure += losses.terms[quality] * len(index)
+        correct += losses.terms["motion_accuracy"] * len(index)
         seen += len(index)
-    return ValidationRecord(loss / max(seen, 1), iou / max(seen, 1), correct / max(seen, 1))
+    return ValidationRecord(loss / max(seen, 1), measure / max(seen, 1), correct / max(seen, 1))
 
 
 class SegmentationScores(NamedTuple):
@@ -265,6 +300,25 @@ def score_segmenter(
 
     mean_accuracy = float(np.mean(accuracy)) if accuracy else math.nan
     return SegmentationScores(m_ap(False), m_ap(True), mean_accuracy, len(data))
+
+
+def choose_cluster_radius(
+    model: PartSegmentationNet,
+    data: SegmentationData,
+    inference: InferenceConfig,
+    radii: tuple[float, ...],
+) -> tuple[InferenceConfig, dict[float, float]]:
+    """Votes head: the `inference` whose cluster_radius scores the best mean of clean and
+    noisy mAP@0.5 on `data` among `radii` (ties: the first), and every radius' score.
+    Masks head or no radii: `inference` unchanged, no scores."""
+    if model.config.head != "votes" or not radii:
+        return inference, {}
+    scores: dict[float, float] = {}
+    for radius in radii:
+        s = score_segmenter(model, data, inference.model_copy(update={"cluster_radius": radius}))
+        scores[radius] = float(np.nanmean([s.map_clean, s.map_noisy]))
+    best = max(radii, key=lambda r: scores[r])
+    return inference.model_copy(update={"cluster_radius": best}), scores
 
 
 def training_objects(ds: ScanDataset, data: CloudDataConfig) -> ObjectSplit:

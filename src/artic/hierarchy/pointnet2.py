@@ -6,6 +6,11 @@ for the few thousand points the segmenter sees (the scan is downsampled first).
 
 Conventions: point sets are channels-last, `xyz (B, N, 3)` and `features (B, N, C)`
 (None when a set has only coordinates). Indices are int64 into the N axis.
+
+The neighbourhoods (FPS centres, ball-query balls, 3-NN interpolation maps) depend only on
+the input coordinates, so a cloud seen every epoch can have them computed once
+(`backbone_index`, a `BackboneIndex`) and passed to `PointNet2.forward(..., index=...)`:
+the forward pass is then gathers and MLPs only, with the same outputs.
 """
 
 from __future__ import annotations
@@ -169,27 +174,46 @@ def group(points: PointSet, centroids: Tensor, index: Tensor) -> Tensor:
     return torch.cat([local, gather_points(points.features, index)], dim=-1)
 
 
+def three_nn(dense_xyz: Tensor, sparse_xyz: Tensor) -> tuple[Tensor, Tensor]:
+    """The 3 nearest sparse points of every dense point and their inverse-squared-distance
+    weights (Qi et al. 2017b, Eq. 2 with k = 3, p = 2), normalised to sum to 1.
+
+    dense_xyz: (B, N, 3); sparse_xyz: (B, S, 3) -> index (B, N, k) int64 and weights
+    (B, N, k), k = min(3, S). With S = 1 every point takes the single sparse point, weight 1.
+    """
+    b, n, _ = dense_xyz.shape
+    s = sparse_xyz.shape[1]
+    if s == 1:
+        index = torch.zeros(b, n, 1, dtype=torch.long, device=dense_xyz.device)
+        return index, dense_xyz.new_ones(b, n, 1)
+    k = min(3, s)
+    chunk = max(1, _MAX_BLOCK // max(1, b * s))
+    indices, weights = [], []
+    for lo in range(0, n, chunk):
+        d2 = square_distances(dense_xyz[:, lo : lo + chunk], sparse_xyz)
+        dist, idx = d2.topk(k, dim=-1, largest=False)
+        weight = 1.0 / dist.clamp_min(1e-10)
+        weights.append(weight / weight.sum(-1, keepdim=True))
+        indices.append(idx)
+    return torch.cat(indices, dim=1), torch.cat(weights, dim=1)
+
+
+def interpolate(features: Tensor, index: Tensor, weights: Tensor) -> Tensor:
+    """Weighted sums of sparse features: features (B, S, C), index and weights (B, N, k)
+    (from `three_nn`) -> (B, N, C)."""
+    if index.shape[-1] == 1 and features.shape[1] == 1:  # the single coarsest point
+        return features.expand(index.shape[0], index.shape[1], -1)
+    return (gather_points(features, index) * weights.unsqueeze(-1)).sum(2)
+
+
 def three_nn_interpolate(dense_xyz: Tensor, sparse: PointSet) -> Tensor:
     """Features at `dense_xyz` by inverse-squared-distance weights of the 3 nearest sparse
-    points (Qi et al. 2017b, Eq. 2 with k = 3, p = 2).
+    points (Qi et al. 2017b, Eq. 2 with k = 3, p = 2): `interpolate` after `three_nn`.
 
     dense_xyz: (B, N, 3); sparse: xyz (B, S, 3), features (B, S, C) -> (B, N, C).
     """
     assert sparse.features is not None
-    b, n, _ = dense_xyz.shape
-    s = sparse.xyz.shape[1]
-    if s == 1:
-        return sparse.features.expand(b, n, -1)
-    k = min(3, s)
-    chunk = max(1, _MAX_BLOCK // max(1, b * s))
-    parts = []
-    for lo in range(0, n, chunk):
-        d2 = square_distances(dense_xyz[:, lo : lo + chunk], sparse.xyz)
-        dist, idx = d2.topk(k, dim=-1, largest=False)
-        weight = 1.0 / dist.clamp_min(1e-10)
-        weight = weight / weight.sum(-1, keepdim=True)
-        parts.append((gather_points(sparse.features, idx) * weight.unsqueeze(-1)).sum(2))
-    return torch.cat(parts, dim=1)
+    return interpolate(sparse.features, *three_nn(dense_xyz, sparse.xyz))
 
 
 Norm = Literal["batch", "layer"]
@@ -246,7 +270,11 @@ class SetAbstraction(nn.Module):
         self.mlp = SharedMLP(in_channels + 3, spec.widths, norm)
         self.out_channels = self.mlp.out_channels
 
-    def forward(self, points: PointSet) -> PointSet:
+    def forward(
+        self, points: PointSet, centres: Tensor | None = None, neighbours: Tensor | None = None
+    ) -> PointSet:
+        """`centres` (B, S) and `neighbours` (B, S, K), int64 (from `backbone_index`): the
+        FPS and ball-query indices, computed here when not given."""
         spec = self.spec
         xyz = points.xyz
         if spec.n_centroids is None:
@@ -254,10 +282,12 @@ class SetAbstraction(nn.Module):
             grouped = xyz if points.features is None else torch.cat([xyz, points.features], -1)
             grouped = grouped.unsqueeze(1)
         else:
-            centre_index = farthest_point_sample(xyz, spec.n_centroids)
-            centroids = gather_points(xyz, centre_index)
-            index = ball_query(xyz, centroids, spec.radius, spec.n_neighbours)
-            grouped = group(points, centroids, index)
+            if centres is None:
+                centres = farthest_point_sample(xyz, spec.n_centroids)
+            centroids = gather_points(xyz, centres)
+            if neighbours is None:
+                neighbours = ball_query(xyz, centroids, spec.radius, spec.n_neighbours)
+            grouped = group(points, centroids, neighbours)
         return PointSet(centroids, self.mlp(grouped).amax(dim=2))
 
 
@@ -275,8 +305,15 @@ class FeaturePropagation(nn.Module):
         self.mlp = SharedMLP(in_channels, widths, norm)
         self.out_channels = self.mlp.out_channels
 
-    def forward(self, dense: PointSet, sparse: PointSet) -> Tensor:
-        x = three_nn_interpolate(dense.xyz, sparse)
+    def forward(
+        self, dense: PointSet, sparse: PointSet, maps: tuple[Tensor, Tensor] | None = None
+    ) -> Tensor:
+        """`maps`: the 3-NN index and weights (B, N, k) of `three_nn(dense.xyz, sparse.xyz)`,
+        computed here when not given."""
+        assert sparse.features is not None
+        if maps is None:
+            maps = three_nn(dense.xyz, sparse.xyz)
+        x = interpolate(sparse.features, *maps)
         if dense.features is not None:
             x = torch.cat([dense.features, x], dim=-1)
         return self.mlp(x)
@@ -345,14 +382,135 @@ class PointNet2(nn.Module):
         self.out_channels = sparse_channels
         self.global_channels = channels[-1]
 
-    def forward(self, xyz: Tensor, features: Tensor | None = None) -> BackboneOutput:
+    def forward(
+        self, xyz: Tensor, features: Tensor | None = None, index: BackboneIndex | None = None
+    ) -> BackboneOutput:
+        """xyz (B, N, 3), features (B, N, C_in) or None; `index`: the neighbourhoods of
+        these clouds (`backbone_index(xyz, self.config)`, or `stack_indices` of the clouds'
+        own), computed on the fly when None (same outputs either way)."""
+        if index is not None:
+            _check_index(index, self.config, xyz.shape[0], xyz.shape[1])
+            index = _long(index)
         levels = [PointSet(xyz, features)]
-        for sa in self.set_abstractions:
-            levels.append(sa(levels[-1]))
+        sampled = 0
+        for sa, spec in zip(self.set_abstractions, self.config.set_abstractions, strict=True):
+            if index is None or spec.n_centroids is None:
+                levels.append(sa(levels[-1]))
+            else:
+                centres, neighbours = index.centres[sampled], index.neighbours[sampled]
+                levels.append(sa(levels[-1], centres, neighbours))
+                sampled += 1
         global_features = levels[-1].features
         assert global_features is not None
         sparse = levels[-1]
-        for fp, dense in zip(self.propagations, reversed(levels[:-1]), strict=True):
-            sparse = PointSet(dense.xyz, fp(dense, sparse))
+        for j, (fp, dense) in enumerate(zip(self.propagations, reversed(levels[:-1]), strict=True)):
+            maps = None if index is None else (index.interpolation_index[j], index.weights[j])
+            sparse = PointSet(dense.xyz, fp(dense, sparse, maps))
         assert sparse.features is not None
         return BackboneOutput(sparse.features, global_features.amax(dim=1))
+
+
+class BackboneIndex(NamedTuple):
+    """Every neighbourhood a `PointNet2` forward pass looks up, for B clouds (one cloud:
+    B = 1). Computed once per cloud by `backbone_index`, joined into a batch by
+    `stack_indices`, passed as `PointNet2.forward(xyz, index=...)`.
+
+    One entry per set-abstraction level that samples centroids (`n_centroids` not None),
+    in order, and one per feature propagation, coarsest first (the order of
+    `PointNet2Config.propagations`). Indices may be stored narrower (int16 / int32) than
+    the int64 the gathers take; `stack_indices` and `forward` widen them.
+    """
+
+    centres: tuple[Tensor, ...]  # (B, S_l) FPS indices into level l's input points
+    neighbours: tuple[Tensor, ...]  # (B, S_l, K_l) ball-query indices, same points
+    interpolation_index: tuple[Tensor, ...]  # (B, N_dense, k) 3-NN into the sparse level
+    weights: tuple[Tensor, ...]  # (B, N_dense, k) float, inverse squared distance, sum 1
+
+    def to(self, device: torch.device | str) -> BackboneIndex:
+        """The same index on `device` (e.g. the model's, when training on a GPU)."""
+        return BackboneIndex(*(tuple(t.to(device) for t in field) for field in self))
+
+
+def backbone_index(xyz: Tensor, config: PointNet2Config) -> BackboneIndex:
+    """The neighbourhoods `PointNet2(config)` computes in its forward pass on `xyz`
+    (B, N, 3) -- the backbone's input, i.e. the *normalised* cloud when the segmenter
+    normalises -- with the same functions (`farthest_point_sample` from point 0,
+    `ball_query`, `three_nn`), without gradients.
+
+    Distances are all they depend on: a rotation or translation of the cloud (hence the
+    segmenter's augmentation by rotation about z, before normalisation) leaves them
+    unchanged; per-point jitter does not.
+    """
+    centres: list[Tensor] = []
+    neighbours: list[Tensor] = []
+    index: list[Tensor] = []
+    weights: list[Tensor] = []
+    with torch.no_grad():
+        xyz = xyz.detach()
+        levels = [xyz]
+        for spec in config.set_abstractions:
+            points = levels[-1]
+            if spec.n_centroids is None:
+                levels.append(points.new_zeros(points.shape[0], 1, 3))
+                continue
+            centre = farthest_point_sample(points, spec.n_centroids)
+            centroids = gather_points(points, centre)
+            centres.append(centre)
+            neighbours.append(ball_query(points, centroids, spec.radius, spec.n_neighbours))
+            levels.append(centroids)
+        for dense, sparse in zip(reversed(levels[:-1]), reversed(levels[1:]), strict=True):
+            idx, weight = three_nn(dense, sparse)
+            index.append(idx)
+            weights.append(weight)
+    return BackboneIndex(tuple(centres), tuple(neighbours), tuple(index), tuple(weights))
+
+
+def stack_indices(indices: Sequence[BackboneIndex]) -> BackboneIndex:
+    """The index of a batch: `indices` (of one cloud each, or of batches) joined along the
+    batch axis, indices widened to int64. All must come from the same config and point
+    count."""
+    if not indices:
+        raise ValueError("stack_indices needs at least one BackboneIndex")
+
+    def cat(field: int, dtype: torch.dtype | None) -> tuple[Tensor, ...]:
+        levels = [ix[field] for ix in indices]
+        if len({len(level) for level in levels}) != 1:
+            raise ValueError("stack_indices: the indices come from different configs")
+        return tuple(
+            torch.cat([t if dtype is None else t.to(dtype) for t in ts], dim=0)
+            for ts in zip(*levels, strict=True)
+        )
+
+    return BackboneIndex(cat(0, torch.long), cat(1, torch.long), cat(2, torch.long), cat(3, None))
+
+
+def _long(index: BackboneIndex) -> BackboneIndex:
+    def widen(ts: tuple[Tensor, ...]) -> tuple[Tensor, ...]:
+        return tuple(t.long() for t in ts)  # no copy when already int64
+
+    return BackboneIndex(
+        widen(index.centres),
+        widen(index.neighbours),
+        widen(index.interpolation_index),
+        index.weights,
+    )
+
+
+def _check_index(index: BackboneIndex, config: PointNet2Config, b: int, n: int) -> None:
+    """ValueError unless `index` has the shapes `backbone_index` gives for B x N clouds."""
+    sizes = [n]  # points per level, the input first
+    centres: list[tuple[int, ...]] = []
+    balls: list[tuple[int, ...]] = []
+    for spec in config.set_abstractions:
+        sizes.append(1 if spec.n_centroids is None else spec.n_centroids)
+        if spec.n_centroids is not None:
+            centres.append((b, spec.n_centroids))
+            balls.append((b, spec.n_centroids, spec.n_neighbours))
+    maps = [(b, nd, min(3, ns)) for nd, ns in zip(sizes[-2::-1], sizes[:0:-1], strict=True)]
+    expected = (centres, balls, maps, maps)
+    got = tuple([tuple(t.shape) for t in field] for field in index)
+    if got != expected:
+        raise ValueError(
+            f"BackboneIndex does not fit {b} clouds of {n} points and this backbone "
+            f"(shapes {got}, expected {expected})"
+        )

@@ -16,12 +16,17 @@ cross-entropy on motion types. Trained with Adam, learning rate 1e-4 (section 4.
 Inference (`segment`): one cloud (N, 3) -> one part label per input point. The network
 sees at most `n_points` points chosen by farthest-point sampling; labels go back to every
 input point from its nearest sampled point.
+
+`head="votes"` replaces the instance branch and its confidences by a per-point offset to
+the part's centre; parts are then clusters of the shifted points (`artic.hierarchy.votes`,
+the design of PointGroup and GAMMA), which trains to a useful segmenter on a CPU.
+`normals=True` feeds per-point normals (`artic.hierarchy.normals`) to the backbone.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import NamedTuple
+from dataclasses import dataclass, field, replace
+from typing import Literal, NamedTuple
 
 import numpy as np
 import torch
@@ -33,10 +38,18 @@ from torch import Tensor, nn
 
 from artic.errors import InputError
 from artic.hierarchy.config import InferenceConfig
-from artic.hierarchy.pointnet2 import PointNet2, PointNet2Config, SharedMLP, farthest_point_indices
+from artic.hierarchy.pointnet2 import (
+    BackboneIndex,
+    PointNet2,
+    PointNet2Config,
+    SharedMLP,
+    farthest_point_indices,
+)
+from artic.hierarchy.votes import VoteLosses, VoteOutput, vote_loss, vote_parts
 from artic.objects.tree import MOTION_TYPES
 
 N_MASKS = 24
+Head = Literal["masks", "votes"]
 
 
 @dataclass(frozen=True)
@@ -48,15 +61,16 @@ class SegmentationConfig:
     head_width: int = 256  # hidden width of the instance branch (motion branch: half)
     confidence_width: int = 256  # hidden width of the confidence MLP
     normalize: bool = True  # centre each cloud on its mean and scale it into the unit sphere
+    head: Head = "masks"  # masks: section 4.3's N masks + confidences; votes: offsets
+    normals: bool = False  # per-point normals as input features (backbone.in_channels 3)
 
     def scaled(self, factor: float) -> SegmentationConfig:
         """Every width times `factor` (for tests and small machines)."""
-        return SegmentationConfig(
-            n_masks=self.n_masks,
+        return replace(
+            self,
             backbone=self.backbone.scaled(factor),
             head_width=max(4, round(self.head_width * factor)),
             confidence_width=max(4, round(self.confidence_width * factor)),
-            normalize=self.normalize,
         )
 
 
@@ -77,32 +91,50 @@ def normalize_points(xyz: Tensor) -> Tensor:
 
 
 class PartSegmentationNet(nn.Module):
-    """points (B, N, 3), metres -> SegmentationOutput (section 4.3)."""
+    """points (B, N, 3), metres [+ normals (B, N, 3)] -> SegmentationOutput (section 4.3's
+    masks head) or VoteOutput (the votes head)."""
 
     def __init__(self, config: SegmentationConfig | None = None) -> None:
         super().__init__()
         config = config or SegmentationConfig()
+        if config.normals != (config.backbone.in_channels == 3):
+            raise ValueError("SegmentationConfig: normals needs backbone.in_channels == 3")
         self.config = config
         self.backbone = PointNet2(config.backbone)
         c, g, h = self.backbone.out_channels, self.backbone.global_channels, config.head_width
         norm = config.backbone.norm
-        self.instance = nn.Sequential(SharedMLP(c, (h, h), norm), nn.Linear(h, config.n_masks + 1))
+        if config.head == "masks":
+            self.instance = nn.Sequential(
+                SharedMLP(c, (h, h), norm), nn.Linear(h, config.n_masks + 1)
+            )
         self.motion = nn.Sequential(
             SharedMLP(c, (h // 2,), norm), nn.Linear(h // 2, len(MOTION_TYPES))
         )
+        if config.head == "votes":
+            self.offset = nn.Sequential(SharedMLP(c, (h // 2,), norm), nn.Linear(h // 2, 3))
+            return
         # no BatchNorm here: the global feature has one row per cloud (batches of one train)
         w = config.confidence_width
         self.confidence = nn.Sequential(
             nn.Linear(g, w), nn.ReLU(), nn.Linear(w, w), nn.ReLU(), nn.Linear(w, config.n_masks)
         )
 
-    def forward(self, points: Tensor) -> SegmentationOutput:
+    def forward(
+        self, points: Tensor, normals: Tensor | None = None, index: BackboneIndex | None = None
+    ) -> SegmentationOutput | VoteOutput:
+        """`index`: the backbone's neighbourhoods of these clouds (`pointnet2.backbone_index`
+        of the normalised clouds), computed here when None."""
         xyz = normalize_points(points) if self.config.normalize else points
-        features = self.backbone(xyz)
+        if self.config.normals and normals is None:
+            raise ValueError("this segmenter reads normals: pass normals (B, N, 3)")
+        features = self.backbone(xyz, normals if self.config.normals else None, index=index)
+        motion = self.motion(features.point_features)
+        if self.config.head == "votes":
+            return VoteOutput(motion, self.offset(features.point_features), xyz)
         return SegmentationOutput(
             self.instance(features.point_features),
             torch.sigmoid(self.confidence(features.global_features)),
-            self.motion(features.point_features),
+            motion,
         )
 
 
@@ -203,17 +235,41 @@ class SegmentationBatch(NamedTuple):
     points: Tensor  # (B, N, 3) float32, metres
     part_id: Tensor  # (B, N) int64, -1 for points of no part
     motion_type: Tensor  # (B, N) int64 in 0..3, -1 to ignore
+    normals: Tensor | None = None  # (B, N, 3) float32 unit normals, for `normals=True` nets
+    neighbourhoods: BackboneIndex | None = None  # precomputed, `cloud_cache`
 
 
-class TrainRecord(NamedTuple):
-    """Losses of one training step, as floats."""
+class StepLosses(NamedTuple):
+    """The loss of one batch under either head, and its terms as floats."""
 
-    total: float
-    mask: float
-    other: float
-    confidence: float
-    motion: float
-    matched_iou: float
+    total: Tensor  # differentiable
+    terms: dict[str, float]  # the head's loss terms and its quality measure (QUALITY)
+
+
+#: per head, the training term that measures quality and whether higher is better
+QUALITY: dict[str, tuple[str, bool]] = {
+    "masks": ("matched_iou", True),
+    "votes": ("offset_error", False),
+}
+
+
+def head_loss(
+    output: SegmentationOutput | VoteOutput,
+    part_id: Tensor,
+    motion_type: Tensor,
+    weights: LossWeights | None = None,
+) -> StepLosses:
+    """`segmentation_loss` (masks head; `weights`) or `votes.vote_loss` (votes head)."""
+    losses: SegmentationLosses | VoteLosses
+    if isinstance(output, VoteOutput):
+        losses = vote_loss(output, part_id, motion_type)
+    else:
+        losses = segmentation_loss(output, part_id, motion_type, weights)
+    terms = {k: float(v.detach()) for k, v in losses._asdict().items()}
+    valid = motion_type >= 0
+    right = output.motion_logits.detach().argmax(-1) == motion_type
+    terms["motion_accuracy"] = float(right[valid].float().mean()) if valid.any() else 1.0
+    return StepLosses(losses.total, terms)
 
 
 def make_optimizer(model: nn.Module, lr: float = 1e-4) -> torch.optim.Adam:
@@ -221,30 +277,37 @@ def make_optimizer(model: nn.Module, lr: float = 1e-4) -> torch.optim.Adam:
     return torch.optim.Adam(model.parameters(), lr=lr)
 
 
+def run_batch(
+    model: PartSegmentationNet, batch: SegmentationBatch, weights: LossWeights | None = None
+) -> StepLosses:
+    """The model's loss on `batch` (moved to the model's device), in its current mode."""
+    device = next(model.parameters()).device
+    normals = None if batch.normals is None else batch.normals.to(device)
+    index = None if batch.neighbourhoods is None else batch.neighbourhoods.to(device)
+    output = model(batch.points.to(device), normals, index)
+    return head_loss(output, batch.part_id.to(device), batch.motion_type.to(device), weights)
+
+
 def train_step(
     model: PartSegmentationNet,
     optimizer: torch.optim.Optimizer,
     batch: SegmentationBatch,
     weights: LossWeights | None = None,
-) -> TrainRecord:
-    """One optimisation step on `batch` (moved to the model's device) -> its losses."""
-    device = next(model.parameters()).device
+) -> dict[str, float]:
+    """One optimisation step on `batch` -> its loss terms ("total" and the head's)."""
     model.train()
     optimizer.zero_grad(set_to_none=True)
-    output = model(batch.points.to(device))
-    losses = segmentation_loss(
-        output, batch.part_id.to(device), batch.motion_type.to(device), weights
-    )
+    losses = run_batch(model, batch, weights)
     losses.total.backward()
     optimizer.step()
-    return TrainRecord(*(float(v.detach()) for v in losses))
+    return losses.terms
 
 
 class SegmentationResult(NamedTuple):
     part_id: NDArray[np.int64]  # (N,) in 0..P-1, parts ordered by decreasing size
     motion_type: NDArray[np.int64]  # (N,) index into MOTION_TYPES
     motion_prob: NDArray[np.float32]  # (N, 4) softmax over MOTION_TYPES
-    part_confidence: NDArray[np.float32]  # (P,) predicted IoU of each part's mask
+    part_confidence: NDArray[np.float32]  # (P,) the mAP ranking score of each part
 
 
 def segment(
@@ -255,10 +318,12 @@ def segment(
     """Segment one cloud into parts with motion types: points (N, 3), metres.
 
     1. Downsample to `n_points` by farthest-point sampling (deterministic, from point 0).
-    2. Run the network; every sampled point takes its most probable slot.
-    3. Masks that are "other", smaller than max(min_points, min_fraction * S) or less
-       confident than `min_confidence` are dropped; their points move to their most
-       probable kept mask (the largest mask is always kept).
+    2. Run the network (with the samples' normals if it reads them).
+    3. Masks head: every sampled point takes its most probable slot; masks that are
+       "other", smaller than max(min_points, min_fraction * S) or less confident than
+       `min_confidence` are dropped; their points move to their most probable kept mask
+       (the largest mask is always kept). Votes head: clusters of the shifted points
+       within `cluster_radius`, the same minimum size (`votes.cluster_votes`).
     4. Every input point takes the labels of its nearest sampled point (cKDTree).
 
     Train on clouds prepared the same way (`farthest_point_indices(scan, n_points)`).
@@ -279,20 +344,30 @@ def segment(
         else np.arange(len(pts))
     )
     device = next(model.parameters()).device
+    normals = None
+    if model.config.normals:
+        from artic.hierarchy.normals import estimate_normals
+
+        normals = torch.from_numpy(estimate_normals(pts[sample])).to(device)[None]
     model.eval()
     with torch.no_grad():
-        out = model(torch.from_numpy(pts[sample]).to(device)[None])
-    mask_prob = out.mask_logits[0].softmax(-1).cpu().numpy()  # (S, M + 1)
-    confidence = out.confidence[0].cpu().numpy()
-    motion_prob = out.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
-    merged = merge_masks(mask_prob, confidence, config)
+        out = model(torch.from_numpy(pts[sample]).to(device)[None], normals)
+    min_size = max(config.min_points, int(np.ceil(config.min_fraction * len(sample))))
+    if isinstance(out, VoteOutput):
+        clusters, motion_prob = vote_parts(out, config.cluster_radius, min_size)
+        label, confidence = clusters.label, clusters.confidence
+    else:
+        mask_prob = out.mask_logits[0].softmax(-1).cpu().numpy()  # (S, M + 1)
+        motion_prob = out.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
+        merged = merge_masks(mask_prob, out.confidence[0].cpu().numpy(), config)
+        label, confidence = merged.label, out.confidence[0].cpu().numpy()[merged.mask]
     nearest = nearest_sample(pts[sample], pts)
-    used, part_id = np.unique(merged.label[nearest], return_inverse=True)  # drop emptied parts
+    used, part_id = np.unique(label[nearest], return_inverse=True)  # drop emptied parts
     return SegmentationResult(
         part_id.astype(np.int64),
         motion_prob.argmax(-1)[nearest].astype(np.int64),
         motion_prob[nearest],
-        confidence[merged.mask[used]].astype(np.float32),
+        confidence[used].astype(np.float32),
     )
 
 

@@ -1,0 +1,141 @@
+"""The segmenter's votes head: offsets to part centres, clustering, training, inference."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+import torch
+from test_segmentation import _batch, three_boxes, tiny_config
+
+from artic.evaluation.segmentation import (
+    average_precision,
+    instance_iou,
+    motion_type_accuracy,
+    object_detections,
+)
+from artic.hierarchy.models import load_segmenter, save_segmenter
+from artic.hierarchy.segmentation import (
+    InferenceConfig,
+    PartSegmentationNet,
+    make_optimizer,
+    segment,
+    train_step,
+)
+from artic.hierarchy.votes import VoteOutput, cluster_votes, part_offsets, vote_loss
+
+
+@pytest.fixture(autouse=True)
+def _one_thread() -> Iterator[None]:
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def _one_hot_prob(motion: np.ndarray) -> np.ndarray:
+    return np.eye(4, dtype=np.float32)[motion]
+
+
+def test_part_offsets_point_at_each_part_mean_in_its_own_cloud() -> None:
+    points, part, _ = three_boxes(300, 0)
+    xyz = torch.from_numpy(np.stack([points, points[::-1].copy()]))
+    ids = torch.from_numpy(np.stack([part, part[::-1].copy()]))
+    ids[1, :10] = -1  # points of no part: no offset
+    offsets, labelled = part_offsets(xyz, ids)
+    assert not labelled[1, :10].any() and labelled[0].all()
+    assert torch.equal(offsets[1, :10], torch.zeros(10, 3))
+    for b in range(2):
+        for p in range(3):
+            members = ids[b] == p
+            centre = xyz[b][members].mean(0)
+            torch.testing.assert_close(
+                xyz[b][members] + offsets[b][members], centre.expand(int(members.sum()), 3)
+            )
+
+
+def test_vote_loss_is_zero_for_true_offsets_and_confident_motion() -> None:
+    points, part, motion = three_boxes(200, 1)
+    xyz = torch.from_numpy(points)[None]
+    ids, types = torch.from_numpy(part)[None], torch.from_numpy(motion)[None]
+    offsets, _ = part_offsets(xyz, ids)
+    logits = torch.from_numpy(_one_hot_prob(motion))[None] * 100.0
+    exact = vote_loss(VoteOutput(logits, offsets, xyz), ids, types)
+    assert float(exact.total) < 1e-5 and float(exact.offset_error) < 1e-6
+    wrong = vote_loss(VoteOutput(logits, offsets + 0.1, xyz), ids, types)
+    assert float(wrong.offset) == pytest.approx(0.3, abs=1e-5)
+    assert float(wrong.total) > float(exact.total)
+
+
+def test_true_offsets_cluster_into_exactly_the_parts() -> None:
+    """Shifted by their true offsets, the points of each part collapse onto its centre."""
+    points, part, motion = three_boxes(600, 2)
+    offsets, _ = part_offsets(torch.from_numpy(points)[None], torch.from_numpy(part)[None])
+    shifted = points + offsets[0].numpy()
+    clusters = cluster_votes(shifted, _one_hot_prob(motion), radius=0.02, min_size=5)
+    assert len(clusters.confidence) == 3
+    iou = instance_iou(clusters.label, part)
+    np.testing.assert_allclose(iou.max(axis=0), 1.0)
+    np.testing.assert_allclose(clusters.confidence, 1.0)
+    counts = np.bincount(clusters.label)
+    assert (np.diff(counts) <= 0).all()  # parts ordered by decreasing size
+
+
+def test_two_parts_of_one_motion_type_are_split_by_their_centres() -> None:
+    rng = np.random.default_rng(0)
+    a, b = (
+        rng.normal(0.0, 0.004, (40, 3)),
+        rng.normal(0.0, 0.004, (30, 3)) + np.array([0.3, 0.0, 0.0]),
+    )
+    shifted = np.concatenate([a, b])
+    prob = _one_hot_prob(np.full(70, 2))
+    clusters = cluster_votes(shifted, prob, radius=0.05, min_size=5)
+    np.testing.assert_array_equal(clusters.label, [0] * 40 + [1] * 30)
+    # with a radius above the gap they are one part
+    assert len(cluster_votes(shifted, prob, radius=0.5, min_size=5).confidence) == 1
+
+
+def test_small_groups_join_the_nearest_part_and_every_point_gets_one() -> None:
+    rng = np.random.default_rng(1)
+    big = rng.normal(0.0, 0.005, (50, 3))
+    stray = np.array([[0.08, 0.0, 0.0], [0.5, 0.5, 0.5]])
+    other = rng.normal(0.0, 0.005, (20, 3)) + np.array([1.0, 0.0, 0.0])
+    shifted = np.concatenate([big, stray, other])
+    motion = np.array([0] * 50 + [1, 1] + [0] * 20)  # the strays have another motion type
+    clusters = cluster_votes(shifted, _one_hot_prob(motion), radius=0.03, min_size=5)
+    assert len(clusters.confidence) == 2
+    assert clusters.label[50] == clusters.label[0] and (clusters.label[52:] == 1).all()
+    assert (clusters.label >= 0).all()
+    again = cluster_votes(shifted, _one_hot_prob(motion), radius=0.03, min_size=5)
+    np.testing.assert_array_equal(again.label, clusters.label)
+    # nothing big enough: the largest group is kept
+    tiny = cluster_votes(shifted, _one_hot_prob(motion), radius=0.03, min_size=500)
+    np.testing.assert_array_equal(tiny.label, np.zeros(72))
+
+
+def test_votes_net_overfits_one_cloud_of_three_boxes_and_round_trips(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """~10 s: 400 Adam steps on one 384-point cloud; the saved model segments the same."""
+    torch.manual_seed(0)
+    config = dataclasses.replace(tiny_config(), head="votes")
+    model = PartSegmentationNet(config)
+    assert not hasattr(model, "instance") and not hasattr(model, "confidence")
+    optimizer = make_optimizer(model, lr=1e-3)
+    points, part, motion = three_boxes(384, 0)
+    batch = _batch(points, part, motion)
+    totals = [train_step(model, optimizer, batch)["total"] for _ in range(400)]
+    assert totals[-1] < 0.3 * totals[0]
+    inference = InferenceConfig(cluster_radius=0.1)
+    result = segment(model, points, inference)
+    assert isinstance(model(torch.from_numpy(points)[None]), VoteOutput)
+    iou = instance_iou(result.part_id, part)
+    assert (iou.max(axis=0) > 0.9).all()
+    assert average_precision(object_detections(result.part_id, result.part_confidence, part)) == 1.0
+    assert motion_type_accuracy(result.motion_type, motion) > 0.9
+    save_segmenter(tmp_path / "model.pt", "storage_furniture", model, inference, {})
+    loaded = load_segmenter(tmp_path / "model.pt", "storage_furniture")
+    assert loaded.model.config.head == "votes" and loaded.inference.cluster_radius == 0.1
+    again = segment(loaded.model, points, loaded.inference)
+    for a, b in zip(result, again, strict=True):
+        np.testing.assert_array_equal(a, b)
