@@ -4,6 +4,7 @@ networks in hand-made train-segmenter / train-hierarchy output folders."""
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 import pytest
@@ -134,3 +135,18 @@ def test_bad_inputs_exit_2(setup, tmp_path):
     code, _, err = evaluate(setup, tmp_path / "x", "category=lamp")
     assert code == 2 and "not lamp" in err, err
     assert not (tmp_path / "x").exists()
+
+
+def test_turned_scans_are_scored_after_the_yaw_estimate(setup, tmp_path):
+    """`evaluate.yaw=random`: every scan turned by a seeded random yaw and turned back by
+    the estimated one; the manifest reports how well the yaw was recovered."""
+    out = tmp_path / "yaw"
+    code, _, err = evaluate(setup, out, "evaluate.yaw=random")
+    assert code == 0, err
+    stats = json.loads((out / "manifest.json").read_text())["stats"]
+    assert 0.0 <= stats["yaw within 5 deg"] <= 1.0 and stats["yaw error median (deg)"] >= 0.0
+    summary = _rows(out / "summary.csv")
+    assert len(summary) == 4 and all(0.0 <= float(r["tree_f1"]) <= 100.0 for r in summary)
+    again = tmp_path / "again"
+    assert evaluate(setup, again, "evaluate.yaw=random")[0] == 0
+    assert (again / "per_object.csv").read_bytes() == (out / "per_object.csv").read_bytes()

@@ -89,7 +89,9 @@ def evaluate_chunk(
     objects = _test_objects(cfg, inputs["scans"])[chunk * size : (chunk + 1) * size]
     segmenter = load_segmenter(inputs["segmenter"] / MODEL, cfg.category.name)
     labeller = load_labeller(inputs["labeller"] / MODEL, cfg.category.name)
-    hcfg = HierarchyConfig(segmenter.inference, labeller.graph, estimate_axes=False)
+    # the yaw is handled per scan by evaluate_scan (evaluate.yaw); the models see the
+    # object frame
+    hcfg = HierarchyConfig(segmenter.inference, labeller.graph, estimate_axes=False, yaw="none")
     records, skipped = [], 0
     for row in ds.select("test", cfg.evaluate.kinds, objects):
         if cfg.evaluate.max_poses is not None and row.pose >= cfg.evaluate.max_poses:
@@ -141,6 +143,12 @@ def _finalize(
         if r["segmentation"] == "gt":
             stats[f"{r['kind']} mAP"] = round(float(r["map"]), 4)
         stats[f"{r['kind']} Tree F1 ({r['segmentation']} seg.)"] = round(float(r["tree_f1"]), 2)
+    if cfg.evaluate.yaw == "random":
+        import numpy as np
+
+        error = np.degrees(np.abs([r["yaw_error"] for r in records]))
+        stats["yaw error median (deg)"] = round(float(np.median(error)), 2)
+        stats["yaw within 5 deg"] = round(float(np.mean(error <= 5.0)), 4)
     return stats
 
 

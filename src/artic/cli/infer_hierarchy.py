@@ -20,6 +20,7 @@ from artic.hierarchy.commands import (
     run_build_hierarchy,
     run_infer_hierarchy,
     run_segment,
+    uncertain_front,
 )
 from artic.objects.tree import MOTION_TYPES
 
@@ -53,6 +54,9 @@ def print_summary(result: CommandResult) -> None:
     for choice in result.models:
         if choice.warning:
             log.warning("%s: %s", result.command, choice.warning)
+    yaw = result.yaw
+    if yaw is not None and (warning := uncertain_front(yaw)):
+        log.warning("%s: %s", result.command, warning)
     if not logging.getLogger().isEnabledFor(logging.INFO):
         return
     from rich.console import Console
@@ -79,6 +83,11 @@ def print_summary(result: CommandResult) -> None:
             )
         if tree.edges:
             console.print(table)
+    if yaw is not None:
+        console.print(
+            f"scan yaw: {yaw.yaw_deg:+.1f} deg (plane confidence {yaw.plane_confidence:.2f}, "
+            f"front confidence {yaw.front_confidence:.2f}); outputs in the scan's frame"
+        )
     steps = ", ".join(f"{k} {v:.3f} s" for k, v in result.timings.items())
     console.print(f"timings: {steps}")
     for choice in result.models:

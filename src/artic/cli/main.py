@@ -12,7 +12,9 @@ from __future__ import annotations
 import logging
 import sys
 from collections.abc import Callable
+from enum import StrEnum
 from pathlib import Path
+from typing import Literal
 
 import typer
 
@@ -135,7 +137,7 @@ def predict(
         ...,
         "--camera",
         help="camera preset (kinect_v1, kinect_v1_128, thesis_sim) or intrinsics JSON: "
-        "fx, fy, cx, cy, width, height",
+        "fx, fy, cx, cy, width, height, or ROS CameraInfo (K) / Open3D layouts",
     ),
     mask: Path | None = typer.Option(
         None, "--mask", help="object mask (.png or .npy, nonzero = object)"
@@ -195,6 +197,26 @@ _CATEGORY4 = typer.Option(
 )
 
 
+class YawMode(StrEnum):
+    """--yaw of segment / infer-hierarchy (`HierarchyConfig.yaw`)."""
+
+    canonical = "canonical"
+    none = "none"
+
+
+_YAW = typer.Option(
+    YawMode.canonical,
+    "--yaw",
+    help="canonical: the scan's front may face any way (its yaw is estimated, results "
+    "come back in the scan's frame); none: the scan is in the object frame, front "
+    "towards -x",
+)
+
+
+def _yaw_mode(value: YawMode) -> Literal["canonical", "none"]:
+    return "none" if value is YawMode.none else "canonical"
+
+
 @app.command("segment")
 @handle_errors
 def segment_command(
@@ -207,14 +229,19 @@ def segment_command(
     scale: str = _SCALE,
     max_points: int = _MAX_POINTS,
     seed: int = _SEED,
+    yaw: YawMode = _YAW,
 ) -> None:
     """Part instances and motion types of every point (section 4.3): parts.ply.
+
+    The scan: metres (or --scale), z up, its front facing any direction
+    (--yaw canonical) or -x (--yaw none).
 
     Example: artic segment scan.ply --category storage_furniture
     """
     from artic.cli.infer_hierarchy import Options, run, run_segment
 
-    run(run_segment, scan, model, out, Options(category, scale, max_points, seed))
+    opts = Options(category, scale, max_points, seed, yaw=_yaw_mode(yaw))
+    run(run_segment, scan, model, out, opts)
 
 
 @app.command("build-hierarchy")
@@ -255,15 +282,22 @@ def infer_hierarchy_command(
     scale: str = _SCALE,
     max_points: int = _MAX_POINTS,
     seed: int = _SEED,
+    yaw: YawMode = _YAW,
 ) -> None:
     """Scan -> kinematic hierarchy (Fig. 4.2): hierarchy.json, object.urdf, parts.ply,
     hierarchy.png.
+
+    The scan: metres (or --scale), z up, its front (doors, drawers) facing
+    any direction. --yaw canonical (default): its yaw is estimated from
+    its vertical planes, the networks work in artic's object frame (front
+    towards -x), axes and outputs are in the scan's frame. --yaw none: the
+    scan is already in the object frame.
 
     Example: artic infer-hierarchy scan.ply --out scan_hierarchy
     """
     from artic.cli.infer_hierarchy import Options, run, run_infer_hierarchy
 
-    opts = Options(category, scale, max_points, seed)
+    opts = Options(category, scale, max_points, seed, yaw=_yaw_mode(yaw))
     run(run_infer_hierarchy, scan, segmenter, labeller, out, opts)
 
 

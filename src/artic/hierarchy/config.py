@@ -171,3 +171,9 @@ class HierarchyEvaluateConfig(Strict):
     iou_threshold: float = Field(0.5, gt=0, le=1, description="mAP true-positive IoU")
     match_iou: float = Field(0.5, gt=0, le=1, description="predicted-to-true part matching")
     objects_per_chunk: int = Field(4, gt=0, description="test objects per resumable chunk")
+    yaw: Literal["none", "random"] = Field(
+        "none",
+        description="none: scans in the object frame (the thesis' protocol); random: each "
+        "scan turned about z by a seeded random angle, then brought back by the estimated "
+        "yaw (`canonical.canonical_yaw`), as infer-hierarchy --yaw canonical does",
+    )

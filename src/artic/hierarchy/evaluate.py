@@ -1,7 +1,9 @@
 """Tables 4.1 and 4.2 on one scan: the segmenter and the graph network run as `segment`
 and `build-hierarchy` do (`infer`), scored against the scan's true parts and tree
-(`artic.evaluation`). Parts that no point of the scan shows are left out of its ground
-truth (the tree is contracted over them, as in training: `fit_labeller.restrict_tree`).
+(`artic.evaluation`). With `evaluate.yaw=random` the scan is first turned by a random yaw
+and brought back by the estimated one (`canonical`), as a user's scan would be. Parts that
+no point of the scan shows are left out of its ground truth (the tree is contracted over
+them, as in training: `fit_labeller.restrict_tree`).
 """
 
 from __future__ import annotations
@@ -13,12 +15,28 @@ import numpy as np
 from artic.evaluation.hierarchy import hierarchy_counts, match_parts
 from artic.evaluation.hierarchy_report import COUNTS
 from artic.evaluation.segmentation import motion_type_accuracy, object_detections
+from artic.hierarchy.canonical import canonical_yaw, rotate_z
 from artic.hierarchy.config import HierarchyEvaluateConfig
 from artic.hierarchy.fit_labeller import restrict_tree
 from artic.hierarchy.gnn import GraphLabellingNet
 from artic.hierarchy.infer import HierarchyConfig, build_hierarchy, segment_scan
 from artic.hierarchy.segmentation import PartSegmentationNet
 from artic.objects.tree import KinematicTree
+
+
+def _turned_and_recovered(
+    points: np.ndarray, rng: np.random.Generator
+) -> tuple[np.ndarray, dict[str, float]]:
+    """`points` turned about z by an angle drawn from `rng`, then turned back by the yaw
+    `canonical_yaw` estimates of the turned scan (what infer-hierarchy --yaw canonical
+    works on), and the angles (radians): turned, estimated, and the error wrapped to
+    [-pi, pi)."""
+    turned_by = float(rng.uniform(-np.pi, np.pi))
+    turned = rotate_z(points, turned_by)
+    estimate = canonical_yaw(turned)
+    error = (estimate.yaw - turned_by + np.pi) % (2 * np.pi) - np.pi
+    record = {"yaw": turned_by, "yaw_estimate": estimate.yaw, "yaw_error": float(error)}
+    return rotate_z(turned, -estimate.yaw).astype(np.float32), record
 
 
 def evaluate_scan(
@@ -34,6 +52,9 @@ def evaluate_scan(
 ) -> dict[str, Any] | None:
     """One scan's Table 4.1 detections and Table 4.2 counts (None: root not visible).
     points (N, 3) metres; true_part, true_motion (N,) ints (-1: no part)."""
+    yaw_record: dict[str, float] = {}
+    if opts.yaw == "random":
+        points, yaw_record = _turned_and_recovered(points, rng)
     labelled = true_part >= 0
     present = np.unique(true_part[labelled])
     if tree.root not in present or present.max() >= tree.num_parts:
@@ -52,6 +73,7 @@ def evaluate_scan(
         "true_positive": det.true_positive.tolist(),
         "n_ground_truth": det.n_ground_truth,
         "motion_accuracy": motion_type_accuracy(seg.motion_type, true_motion[labelled]),
+        **yaw_record,
     }
     for name, part_id in (("gt", gt), ("pred", seg.part_id)):
         h = build_hierarchy(pts, part_id, labeller, cfg, rng)

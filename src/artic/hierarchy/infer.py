@@ -1,6 +1,10 @@
 """Scan to kinematic hierarchy, end to end (thesis section 4.2, Fig. 4.2), as pure functions.
 
 `infer_hierarchy(points, segmenter, labeller, cfg, rng)`:
+0. (cfg.yaw "canonical", the default) the scan's yaw is estimated from its dominant
+   vertical planes and front (`canonical.canonical_yaw`) and the scan turned into the
+   object frame (front towards -x), where the networks work; the tree's axes and the
+   part centroids are turned back into the scan's frame at the end;
 1. (large clouds) a seeded random subset of `cfg.max_points` points is what the networks
    and the geometry see; every input point gets the labels of its nearest kept point;
 2. part segmentation with motion types (section 4.3, `segmentation.segment`);
@@ -21,13 +25,16 @@ the outputs (`hierarchy.report`, `artifacts.scan_outputs`).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from artic.errors import InputError
+from artic.hierarchy.canonical import YawEstimate, canonical_yaw, rotate_tree_z, rotate_z
 from artic.hierarchy.gnn import GraphLabellingNet
 from artic.hierarchy.gnn import predict as label_graph
 from artic.hierarchy.graph import PartGraphConfig, build_part_graph, check_segmented_cloud
@@ -56,7 +63,10 @@ class HierarchyConfig:
     joints: the joint-axis heuristic. max_points: clouds with more points are subsampled
     (seeded, without replacement) before segmentation; labels go back to every point.
     estimate_axes: False leaves the tree's axes None (the metrics of Table 4.2 do not
-    use them).
+    use them). yaw: "canonical" (default): the scan's front may face any direction;
+    `segment_scan` and `infer_hierarchy` estimate its yaw (`canonical.canonical_yaw`),
+    work in the object frame (front towards -x) and return axes and centroids in the
+    scan's frame; "none": the scan is already in the object frame.
     """
 
     segmentation: InferenceConfig = field(default_factory=InferenceConfig)
@@ -64,6 +74,7 @@ class HierarchyConfig:
     joints: JointHeuristicConfig = field(default_factory=JointHeuristicConfig)
     max_points: int = MAX_POINTS
     estimate_axes: bool = True
+    yaw: Literal["canonical", "none"] = "canonical"
 
 
 @dataclass(frozen=True)
@@ -112,7 +123,8 @@ class ScanSegmentation:
     per-point motion type (index into MOTION_TYPES); motion_prob: (N, 4) float32.
     part_confidence: (P,) float32, the segmenter's predicted IoU of each part.
     sampled: (M,) int64 sorted indices of the input points the networks worked on (all N
-    when N <= cfg.max_points). timings: seconds (subsample, segment, upsample).
+    when N <= cfg.max_points). timings: seconds (yaw, subsample, segment, upsample). yaw:
+    the estimated yaw of the scan (None when cfg.yaw is "none").
     """
 
     part_id: NDArray[np.int64]
@@ -121,6 +133,7 @@ class ScanSegmentation:
     part_confidence: NDArray[np.float32]
     sampled: NDArray[np.int64]
     timings: dict[str, float]
+    yaw: YawEstimate | None = None
 
     @property
     def num_parts(self) -> int:
@@ -134,13 +147,20 @@ class HierarchyResult:
     segmentation: per-point parts (N,) and motion types, per-part confidences.
     hierarchy: the KinematicTree (joint types and axes) over the same parts, with the
     graph network's probabilities (part-level motion types come from the graph network;
-    it saw the points `segmentation.sampled`). timings: seconds per step (subsample,
-    segment, upsample, graph, labelling, tree, joints, total).
+    it saw the points `segmentation.sampled`), its axes and part centroids in the scan's
+    frame (the graph's normalised node and edge features are the networks' input, in the
+    object frame). timings: seconds per step (yaw, subsample, segment, upsample, graph,
+    labelling, tree, joints, total). yaw: the scan's estimated yaw (None for cfg.yaw
+    "none"); `canonical.rotate_z(points, -yaw.yaw)` is what the networks saw.
     """
 
     segmentation: ScanSegmentation
     hierarchy: LabelledHierarchy
     timings: dict[str, float]
+
+    @property
+    def yaw(self) -> YawEstimate | None:
+        return self.segmentation.yaw
 
     @property
     def part_id(self) -> NDArray[np.int64]:
@@ -170,6 +190,25 @@ def _check_points(points: NDArray[np.floating]) -> NDArray[np.float32]:
     if not np.isfinite(pts).all():
         raise InputError("points: NaN or infinite coordinates")
     return pts.astype(np.float32)
+
+
+def _object_frame(points: NDArray[np.float32], yaw: YawEstimate | None) -> NDArray[np.float32]:
+    """(N, 3) float32: the scan turned into the object frame (unchanged for yaw None)."""
+    return points if yaw is None else rotate_z(points, -yaw.yaw).astype(np.float32)
+
+
+def _scan_frame(hierarchy: LabelledHierarchy, yaw: YawEstimate | None) -> LabelledHierarchy:
+    """A hierarchy found in the object frame with its axes, part centroids and centre
+    turned back into the scan's frame (unchanged for yaw None)."""
+    if yaw is None:
+        return hierarchy
+    graph = dataclasses.replace(
+        hierarchy.graph,
+        centroids=rotate_z(hierarchy.graph.centroids, yaw.yaw),
+        center=rotate_z(hierarchy.graph.center, yaw.yaw),
+    )
+    tree = rotate_tree_z(hierarchy.tree, yaw.yaw)
+    return dataclasses.replace(hierarchy, tree=tree, graph=graph)
 
 
 def subsample(n: int, max_points: int, rng: np.random.Generator) -> NDArray[np.int64]:
@@ -241,13 +280,17 @@ def segment_scan(
 ) -> ScanSegmentation:
     """Parts and motion types of every point of a scan (section 4.3; module doc, 1-2).
 
-    points: (N, 3) float, metres; finite (InputError otherwise). rng: the subsample of
-    clouds larger than cfg.max_points (default seed 0).
+    points: (N, 3) float, metres, z up; finite (InputError otherwise); in the object frame
+    for cfg.yaw "none", else facing any direction (its yaw is estimated first). rng: the
+    subsample of clouds larger than cfg.max_points (default seed 0).
     """
     cfg = cfg or HierarchyConfig()
     rng = rng if rng is not None else np.random.default_rng(0)
     t_start = time.perf_counter()
     pts = _check_points(points)
+    yaw = canonical_yaw(pts) if cfg.yaw == "canonical" else None
+    pts = _object_frame(pts, yaw)
+    t_yaw = time.perf_counter()
     sampled = subsample(len(pts), cfg.max_points, rng)
     work = pts[sampled]
     t0 = time.perf_counter()
@@ -267,7 +310,13 @@ def segment_scan(
         motion_prob=np.asarray(motion_prob, dtype=np.float32),
         part_confidence=np.asarray(seg.part_confidence, dtype=np.float32),
         sampled=sampled,
-        timings={"subsample": t0 - t_start, "segment": t1 - t0, "upsample": t2 - t1},
+        timings={
+            "yaw": t_yaw - t_start,
+            "subsample": t0 - t_yaw,
+            "segment": t1 - t0,
+            "upsample": t2 - t1,
+        },
+        yaw=yaw,
     )
 
 
@@ -280,16 +329,19 @@ def infer_hierarchy(
 ) -> HierarchyResult:
     """Segment a scan and infer its kinematic hierarchy (Fig. 4.2 (a)-(c)).
 
-    points: (N, 3) float, metres, object frame, z up; finite (InputError otherwise).
-    segmenter / labeller: the section 4.3 and 4.4 networks (evaluation mode is set).
-    rng: the subsample of large clouds and the graph's node resampling (default seed 0);
-    the same inputs and seed give the same result (timings aside).
+    points: (N, 3) float, metres, z up; finite (InputError otherwise); in the object frame
+    (front towards -x) for cfg.yaw "none", else facing any direction: the yaw is
+    estimated, the networks work in the object frame and the tree's axes come back in
+    the scan's frame. segmenter / labeller: the section 4.3 and 4.4 networks (evaluation
+    mode is set). rng: the subsample of large clouds and the graph's node resampling
+    (default seed 0); the same inputs and seed give the same result (timings aside).
     """
     cfg = cfg or HierarchyConfig()
     rng = rng if rng is not None else np.random.default_rng(0)
     t0 = time.perf_counter()
     seg = segment_scan(points, segmenter, cfg, rng)
-    work = np.asarray(points, dtype=np.float32)[seg.sampled]
+    work = _object_frame(_check_points(points), seg.yaw)[seg.sampled]
     hierarchy = build_hierarchy(work, seg.part_id[seg.sampled], labeller, cfg, rng)
+    hierarchy = _scan_frame(hierarchy, seg.yaw)
     timings = {**seg.timings, **hierarchy.timings, "total": time.perf_counter() - t0}
     return HierarchyResult(seg, hierarchy, timings)
