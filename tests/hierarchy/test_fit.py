@@ -67,6 +67,19 @@ def test_augment_rotates_about_z_and_is_seeded() -> None:
     torch.testing.assert_close(
         (rotated.points * rotated.normals).sum(-1), (points * normals).sum(-1), atol=1e-5, rtol=0
     )
+    flips = []
+    for seed in range(8):
+        y = run(AugmentConfig(mirror_y=True), seed).points[..., 1]
+        same, negated = (y == points[..., 1]).all(1), (y == -points[..., 1]).all(1)
+        assert (same | negated).all()  # each cloud as a whole
+        flips += negated.tolist()
+    assert 0.25 < np.mean(flips) < 0.75  # about half of them
+    mirrored = run(AugmentConfig(mirror_y=True), 0)
+    torch.testing.assert_close(mirrored.points[..., 1].abs(), points[..., 1].abs())
+    assert mirrored.normals is not None
+    torch.testing.assert_close(
+        (mirrored.points * mirrored.normals).sum(-1), (points * normals).sum(-1), atol=1e-6, rtol=0
+    )
     jitter = run(AugmentConfig(jitter_m=0.01)).points
     assert 0.005 < float((jitter - points).std()) < 0.02
     assert all(x is y for x, y in zip(run(AugmentConfig()), batch, strict=True))

@@ -95,6 +95,12 @@ def test_two_parts_of_one_motion_type_are_split_by_their_centres() -> None:
     np.testing.assert_array_equal(clusters.label, [0] * 40 + [1] * 30)
     # with a radius above the gap they are one part
     assert len(cluster_votes(shifted, prob, radius=0.5, min_size=5).confidence) == 1
+    # the radius of their motion type (translating) is the one that counts
+    per_type = cluster_votes(shifted, prob, radius=(0.01, 0.01, 0.05, 0.01), min_size=5)
+    np.testing.assert_array_equal(per_type.label, clusters.label)
+    assert (
+        len(cluster_votes(shifted, prob, radius=(0.5, 0.5, 0.01, 0.5), min_size=5).confidence) == 2
+    )
 
 
 def test_small_groups_join_the_nearest_part_and_every_point_gets_one() -> None:
@@ -135,7 +141,7 @@ def test_votes_net_overfits_one_cloud_of_three_boxes_and_round_trips(tmp_path) -
     assert motion_type_accuracy(result.motion_type, motion) > 0.9
     save_segmenter(tmp_path / "model.pt", "storage_furniture", model, inference, {})
     loaded = load_segmenter(tmp_path / "model.pt", "storage_furniture")
-    assert loaded.model.config.head == "votes" and loaded.inference.cluster_radius == 0.1
+    assert loaded.model.config.head == "votes" and loaded.inference.cluster_radius == (0.1,) * 4
     again = segment(loaded.model, points, loaded.inference)
     for a, b in zip(result, again, strict=True):
         np.testing.assert_array_equal(a, b)

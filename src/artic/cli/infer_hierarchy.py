@@ -1,7 +1,7 @@
 """`artic segment`, `artic build-hierarchy` and `artic infer-hierarchy` from the command
 line: the commands themselves (one scan in, one output folder out) are
-`artic.hierarchy.commands`; here, running one of them with the CLI's failure mapping and
-printing its Rich summary.
+`artic.hierarchy.commands` (`main.py` imports them from there); here, running one of them
+with the CLI's failure mapping and printing its Rich summary.
 """
 
 from __future__ import annotations
@@ -13,25 +13,8 @@ from typing import ParamSpec
 import numpy as np
 
 from artic.cli.stage_runner import InternalError
-from artic.hierarchy.commands import (
-    CommandFailed,
-    CommandResult,
-    Options,
-    run_build_hierarchy,
-    run_infer_hierarchy,
-    run_segment,
-    uncertain_front,
-)
+from artic.hierarchy.commands import CommandFailed, CommandResult, uncertain_front
 from artic.objects.tree import MOTION_TYPES
-
-__all__ = [
-    "Options",
-    "print_summary",
-    "run",
-    "run_build_hierarchy",
-    "run_infer_hierarchy",
-    "run_segment",
-]
 
 log = logging.getLogger("artic")
 

@@ -9,7 +9,10 @@ import their heavy dependencies (numpy, open3d, pybullet, hydra) only when they 
 
 from __future__ import annotations
 
+import atexit
+import gc
 import logging
+import os
 import sys
 from collections.abc import Callable
 from enum import StrEnum
@@ -238,7 +241,8 @@ def segment_command(
 
     Example: artic segment scan.ply --category storage_furniture
     """
-    from artic.cli.infer_hierarchy import Options, run, run_segment
+    from artic.cli.infer_hierarchy import run
+    from artic.hierarchy.commands import Options, run_segment
 
     opts = Options(category, scale, max_points, seed, yaw=_yaw_mode(yaw))
     run(run_segment, scan, model, out, opts)
@@ -261,7 +265,8 @@ def build_hierarchy_command(
 
     Example: artic build-hierarchy scan_segmented/parts.ply
     """
-    from artic.cli.infer_hierarchy import Options, run, run_build_hierarchy
+    from artic.cli.infer_hierarchy import run
+    from artic.hierarchy.commands import Options, run_build_hierarchy
 
     opts = Options(category, scale, max_points, seed)
     run(run_build_hierarchy, parts, model, out, opts)
@@ -295,7 +300,8 @@ def infer_hierarchy_command(
 
     Example: artic infer-hierarchy scan.ply --out scan_hierarchy
     """
-    from artic.cli.infer_hierarchy import Options, run, run_infer_hierarchy
+    from artic.cli.infer_hierarchy import run
+    from artic.hierarchy.commands import Options, run_infer_hierarchy
 
     opts = Options(category, scale, max_points, seed, yaw=_yaw_mode(yaw))
     run(run_infer_hierarchy, scan, segmenter, labeller, out, opts)
@@ -393,9 +399,18 @@ def _root(
         handler.addFilter(NoTracebacks())
 
 
+#: one scan in seconds: one OpenMP thread for its small tensors, no passes of the cyclic
+#: collector over what torch & co. import, nor at shutdown (docs/hierarchy.md, "Speed")
+ONE_SCAN_COMMANDS = frozenset({"segment", "build-hierarchy", "infer-hierarchy"})
+
+
 def main() -> None:
     # before any subcommand imports NumPy or PyTorch: the same kernels on every CPU
     from artic.reproducibility import pin_numerics
 
     pin_numerics()
+    if next((w for w in sys.argv[1:] if not w.startswith("-")), None) in ONE_SCAN_COMMANDS:
+        os.environ.setdefault("OMP_NUM_THREADS", "1")  # a value the user set is kept
+        gc.disable()
+        atexit.register(gc.freeze)  # registered first, run last of the exit handlers
     app()

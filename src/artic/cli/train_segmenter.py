@@ -144,7 +144,7 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
         "val_motion_accuracy": _finite(scores.motion_accuracy),
     }
     if radius_scores:
-        meta["cluster_radius_val_map"] = {str(r): round(v, 4) for r, v in radius_scores.items()}
+        meta["cluster_radius_val_map"] = {r: round(v, 4) for r, v in radius_scores.items()}
     save_segmenter(tmp / MODEL, cfg.category.name, model, inference, meta)
     write_history(tmp / METRICS, state.history)
     write_epoch_timings(tmp, {"train": state.history})
@@ -174,7 +174,8 @@ def _finalize(
         f"{m.n_masks} masks + confidence (the thesis' head)"
         if m.head == "masks"
         else "per-point offsets to the part centre, parts by clustering (votes head, "
-        f"radius {info['inference']['cluster_radius']} chosen on validation clouds)"
+        f"radii {info['inference']['cluster_radius']} per motion type, chosen on validation "
+        "clouds)"
     )
     about = ("PointNet++ instance segmenter of thesis section 4.3 (after PartNet): "
              f"{head}, motion-type branch; width x{m.width}, {m.norm} norm, "

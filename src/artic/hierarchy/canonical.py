@@ -41,7 +41,6 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize
 from scipy.spatial import cKDTree
 
 from artic.errors import InputError
@@ -311,6 +310,8 @@ def fit_front_weights(
     multinomial logistic regression over the four sides with one weight per feature
     shared by the sides, fitted on standardised features (L-BFGS, L2 penalty `l2`) and
     returned for raw features (the means shift every side's score alike)."""
+    from scipy.optimize import minimize  # fitting only: inference never loads it
+
     flat = features.reshape(len(features), 4, -1)
     sd = flat.reshape(-1, flat.shape[2]).std(axis=0) + 1e-9
     mean = flat.reshape(-1, flat.shape[2]).mean(axis=0)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import Field, PositiveFloat
+from pydantic import Field, PositiveFloat, field_validator
 
 from artic.config.schemas import Strict
 from artic.learning.trainer import TrainConfig
@@ -77,9 +77,16 @@ class InferenceConfig(Strict):
     min_points: int = Field(8, ge=0, description="smaller masks are merged away")
     min_fraction: float = Field(0.005, ge=0, lt=1, description="... or smaller than this fraction")
     min_confidence: float = Field(0.1, ge=0, le=1, description="... or less confident")
-    cluster_radius: float = Field(
-        0.12, gt=0, description="votes head: flood-fill radius of the shifted points, cloud radii"
+    cluster_radius: tuple[PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat] = Field(
+        (0.12, 0.12, 0.12, 0.12),
+        description="votes head: flood-fill radius of the shifted points, cloud radii, per "
+        "motion type (static, rotating, translating, both); one number: all four",
     )
+
+    @field_validator("cluster_radius", mode="before")
+    @classmethod
+    def _one_radius_for_all(cls, value: object) -> object:
+        return (value,) * 4 if isinstance(value, int | float) else value
 
 
 class CloudDataConfig(Strict):
@@ -98,6 +105,7 @@ class AugmentConfig(Strict):
 
     rotate_z_deg: float = Field(0.0, ge=0, le=180, description="random rotation about z, +-deg")
     jitter_m: float = Field(0.0, ge=0, description="per-point Gaussian noise std, metres")
+    mirror_y: bool = Field(False, description="mirror half of the clouds in y (left <-> right)")
 
 
 class SegmenterTrainConfig(TrainConfig):
@@ -109,8 +117,9 @@ class SegmenterTrainConfig(TrainConfig):
     patience: int = Field(10, gt=0, description="epochs without a better val loss")
     cluster_radii: tuple[PositiveFloat, ...] = Field(
         (0.05, 0.08, 0.12, 0.16, 0.2, 0.25, 0.3),
-        description="votes head: radii tried on the validation clouds after training; the "
-        "best mAP@0.5's is saved with the model (empty: keep inference.cluster_radius)",
+        description="votes head: radii tried on the validation clouds after training, first "
+        "one for all motion types, then each type's in turn; the best mAP@0.5's are saved "
+        "with the model (empty: keep inference.cluster_radius)",
     )
 
 

@@ -148,9 +148,17 @@ class SegmentationData:
 def augment(
     batch: SegmentationBatch, cfg: AugmentConfig, generator: torch.Generator
 ) -> SegmentationBatch:
-    """Randomly rotate each cloud of the batch about z (its normals too) and jitter its
-    points (CPU generator)."""
+    """Randomly mirror each cloud of the batch in y, rotate it about z (its normals too)
+    and jitter its points (CPU generator). Mirroring and rotating keep every distance, so
+    the clouds' cached neighbourhoods stay valid; jitter is applied after them and the
+    neighbourhoods stay those of the unjittered cloud."""
     points, normals = batch.points, batch.normals
+    if cfg.mirror_y:
+        flip = torch.rand(points.shape[0], generator=generator) < 0.5
+        sign = torch.ones(points.shape[0], 1, 3)
+        sign[flip, 0, 1] = -1.0
+        points = points * sign
+        normals = None if normals is None else normals * sign
     if cfg.rotate_z_deg > 0:
         b = points.shape[0]
         angle = (torch.rand(b, generator=generator) * 2 - 1) * math.radians(cfg.rotate_z_deg)
@@ -307,17 +315,28 @@ def choose_cluster_radius(
     data: SegmentationData,
     inference: InferenceConfig,
     radii: tuple[float, ...],
-) -> tuple[InferenceConfig, dict[float, float]]:
-    """Votes head: the `inference` whose cluster_radius scores the best mean of clean and
-    noisy mAP@0.5 on `data` among `radii` (ties: the first), and every radius' score.
-    Masks head or no radii: `inference` unchanged, no scores."""
+) -> tuple[InferenceConfig, dict[str, float]]:
+    """Votes head: the `inference` whose per-motion-type cluster_radius scores the best
+    mean of clean and noisy mAP@0.5 on `data`: first one radius of `radii` for every type,
+    then each type's radius in turn with the others kept (coordinate search; ties: the
+    smaller radius), and every tried setting's score, keyed by its radii. Masks head or no
+    radii: `inference` unchanged, no scores."""
     if model.config.head != "votes" or not radii:
         return inference, {}
-    scores: dict[float, float] = {}
-    for radius in radii:
-        s = score_segmenter(model, data, inference.model_copy(update={"cluster_radius": radius}))
-        scores[radius] = float(np.nanmean([s.map_clean, s.map_noisy]))
-    best = max(radii, key=lambda r: scores[r])
+    scores: dict[str, float] = {}
+
+    def score(setting: tuple[float, ...]) -> float:
+        key = ",".join(f"{r:g}" for r in setting)
+        if key not in scores:
+            update = {"cluster_radius": setting}
+            s = score_segmenter(model, data, inference.model_copy(update=update))
+            scores[key] = float(np.nanmean([s.map_clean, s.map_noisy]))
+        return scores[key]
+
+    best: tuple[float, ...] = max(((r,) * 4 for r in radii), key=score)
+    for t in range(4):
+        candidates = [best, *((*best[:t], r, *best[t + 1 :]) for r in radii)]
+        best = max(candidates, key=lambda s, t=t: (score(s), -s[t]))  # type: ignore[misc]
     return inference.model_copy(update={"cluster_radius": best}), scores
 
 

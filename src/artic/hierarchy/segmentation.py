@@ -32,7 +32,6 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from numpy.typing import NDArray
-from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 from torch import Tensor, nn
 
@@ -178,6 +177,8 @@ def segmentation_loss(
     part_id: (B, N) int64, any non-negative ids (at most M distinct per cloud), -1 for
     points of no part; motion_type: (B, N) int64 in 0..3, -1 to ignore.
     """
+    from scipy.optimize import linear_sum_assignment  # training only: inference never loads it
+
     weights = weights or LossWeights()
     m = output.confidence.shape[1]
     probs = output.mask_logits.softmax(dim=-1)

@@ -12,17 +12,20 @@ IoU of about 0.5.
   direction losses). Coordinates are those the network sees (`normalize_points`: unit
   sphere), so offsets are in cloud radii.
 - Inference (`cluster_votes`): points of one predicted motion type are shifted by their
-  offsets and grouped by flood fill over pairs closer than `cluster_radius` (the
-  connected components of the radius graph, DBSCAN with min_samples 1). Groups smaller than
+  offsets and grouped by flood fill over pairs closer than that type's `cluster_radius`
+  (the connected components of the radius graph, DBSCAN with min_samples 1; a radius per
+  motion type because the offsets of large parts, e.g. a cabinet's static body, scatter
+  more than those of small ones). Groups smaller than
   max(min_points, min_fraction * S) are not parts: their points join the part of the
   nearest kept shifted point, whatever its motion type. A part's confidence, for the mAP
   ranking, is the mean probability of its motion type over its points times the fraction
-  of its points whose shifted position lies within `cluster_radius` of the part's median
+  of its points whose shifted position lies within its type's radius of the part's median
   shifted position (a compact vote is a confident one).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -102,18 +105,20 @@ class Clusters(NamedTuple):
 def cluster_votes(
     shifted: NDArray[np.floating],
     motion_prob: NDArray[np.floating],
-    radius: float,
+    radius: float | Sequence[float],
     min_size: int,
 ) -> Clusters:
     """Parts from shifted points (module doc): shifted (S, 3) = point + offset; motion_prob
-    (S, T) softmax over motion types. Deterministic; every point gets a part."""
+    (S, T) softmax over motion types; radius: one for all types or one per type.
+    Deterministic; every point gets a part."""
     shifted = np.asarray(shifted, dtype=np.float64)
     prob = np.asarray(motion_prob, dtype=np.float64)
+    radii = np.broadcast_to(np.asarray(radius, dtype=np.float64), (prob.shape[1],))
     motion = prob.argmax(-1)
     groups: list[NDArray[np.int64]] = []
     for t in np.unique(motion):
         members = np.flatnonzero(motion == t)
-        pairs = cKDTree(shifted[members]).query_pairs(radius, output_type="ndarray")
+        pairs = cKDTree(shifted[members]).query_pairs(radii[t], output_type="ndarray")
         graph = coo_matrix(
             (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(members),) * 2
         )
@@ -136,24 +141,15 @@ def cluster_votes(
     for i, g in enumerate(kept):
         t = motion[g[0]]
         centre = np.median(shifted[g], axis=0)
-        compact = float(np.mean(np.linalg.norm(shifted[g] - centre, axis=1) <= radius))
+        compact = float(np.mean(np.linalg.norm(shifted[g] - centre, axis=1) <= radii[t]))
         confidence[i] = float(prob[g, t].mean()) * compact
     return Clusters(label, confidence)
 
 
 def vote_parts(
-    output: VoteOutput, radius: float, min_size: int
+    output: VoteOutput, radius: float | Sequence[float], min_size: int
 ) -> tuple[Clusters, NDArray[np.float32]]:
     """`cluster_votes` on the first cloud of a batch -> (clusters, motion_prob (S, T))."""
     prob = output.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
     shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
     return cluster_votes(shifted, prob, radius, min_size), prob
-
-
-def offset_error(output: VoteOutput, part_id: Tensor) -> float:
-    """Mean Euclidean offset error over labelled points, cloud radii."""
-    with torch.no_grad():
-        target, labelled = part_offsets(output.xyz, part_id)
-        if not labelled.any():
-            return 0.0
-        return float((output.offsets[labelled] - target[labelled]).norm(dim=-1).mean())
