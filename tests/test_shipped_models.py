@@ -60,3 +60,27 @@ def test_the_demo_journeys_run_on_the_shipped_models(
     assert done.returncode == 0, done.stderr
     for said in ("Chapter 4: kinematic tree", "truth", "Chapter 3:", "model: shipped"):
         assert said in done.stdout
+
+
+#: a withheld storage-furniture object's fused noisy scan (artic render-scan, object 107 of
+#: the shipped models' scans, pose 0): a cabinet body with two doors (docs/models.md)
+FIXTURE = Path(__file__).parent / "fixtures" / "storage_furniture_scan.ply"
+
+
+def test_the_shipped_chapter_4_models_give_the_documented_tree(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+):
+    """`artic infer-hierarchy scan.ply` on a fresh install, no training: the documented
+    tree of the fixture scan (re-ship the models: re-check this scan's tree and the docs)."""
+    import json
+
+    from cli_runner import run_cli
+
+    monkeypatch.delenv("ARTIC_MODELS")
+    code, _, err = run_cli("infer-hierarchy", str(FIXTURE), "--out", str(tmp_path / "out"))
+    assert code == 0, err
+    found = json.loads((tmp_path / "out" / "hierarchy.json").read_text())
+    assert found["models"]["segmenter"].endswith("models/segmenter/storage_furniture/model.pt")
+    assert found["edges"] == [[0, 1], [0, 2]]
+    assert found["motion_types"] == ["static", "rotating", "rotating"]
+    assert found["joint_types"] == ["revolute", "revolute"]
