@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import multiprocessing
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -25,14 +24,6 @@ from artic.hierarchy.cloud_cache import (
 from artic.hierarchy.config import SegmenterModelConfig
 from artic.hierarchy.pointnet2 import PointNet2, stack_indices
 from artic.hierarchy.segmentation import SegmentationConfig, normalize_points
-
-
-@pytest.fixture(autouse=True)
-def _one_thread() -> Iterator[None]:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 def _config() -> SegmentationConfig:

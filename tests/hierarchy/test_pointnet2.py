@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
-import pytest
 import torch
 
 from artic.hierarchy.pointnet2 import (
@@ -22,14 +19,6 @@ from artic.hierarchy.pointnet2 import (
     group,
     three_nn_interpolate,
 )
-
-
-@pytest.fixture(autouse=True)
-def _one_thread() -> Iterator[None]:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 def _cloud(b: int, n: int, seed: int) -> torch.Tensor:

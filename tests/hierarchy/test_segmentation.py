@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -33,15 +32,6 @@ from artic.hierarchy.segmentation import (
     train_step,
 )
 from artic.objects.tree import MOTION_TYPES
-
-
-@pytest.fixture(autouse=True)
-def _one_thread() -> Iterator[None]:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
 
 #: (centre, size, part, motion type): a static body, a door (rotating), a drawer (translating)
 _BOXES = (

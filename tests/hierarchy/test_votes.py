@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -25,14 +24,6 @@ from artic.hierarchy.segmentation import (
     train_step,
 )
 from artic.hierarchy.votes import VoteOutput, cluster_votes, part_offsets, vote_loss
-
-
-@pytest.fixture(autouse=True)
-def _one_thread() -> Iterator[None]:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 def _one_hot_prob(motion: np.ndarray) -> np.ndarray:

@@ -79,7 +79,7 @@ KINDS: dict[str, ModelKind] = {
             4,
             "artic segment, artic infer-hierarchy",
             "`artic pipeline ch4` (generate, scan, train segmenter and graph network, "
-            "evaluate; about 50 minutes per category on 2 CPU cores, three categories)",
+            "evaluate; about an hour per category on 2 CPU cores, three categories)",
             "mAP",
         ),
         ModelKind(
@@ -88,7 +88,7 @@ KINDS: dict[str, ModelKind] = {
             4,
             "artic build-hierarchy, artic infer-hierarchy",
             "`artic pipeline ch4` (generate, scan, train segmenter and graph network, "
-            "evaluate; about 50 minutes per category on 2 CPU cores, three categories)",
+            "evaluate; about an hour per category on 2 CPU cores, three categories)",
             "Tree F1",
         ),
     )
