@@ -199,7 +199,7 @@ def fit_segmenter(
     measure both heads share, for comparing them)."""
     model.to(device)
     weights = loss or LossWeights()
-    quality = QUALITY[model.config.head][0]
+    quality = QUALITY[model.config.head]
 
     def run_epoch(epoch: int) -> trainer.EpochResult:
         train_loss, train_quality = train_epoch(
@@ -238,7 +238,7 @@ def train_epoch(
     QUALITY term) per cloud."""
     order = np.random.default_rng([seed, epoch]).permutation(len(data))
     generator = torch.Generator().manual_seed(seed * 100_003 + epoch)
-    quality = QUALITY[model.config.head][0]
+    quality = QUALITY[model.config.head]
     total, measure, seen, last_log = 0.0, 0.0, 0, time.perf_counter()
     for start in range(0, len(order), cfg.batch_size):
         index = np.sort(order[start : start + cfg.batch_size])
@@ -267,7 +267,7 @@ def validate(
 ) -> ValidationRecord:
     """Mean loss, QUALITY term and motion-type accuracy of `data` in evaluation mode."""
     model.eval()
-    quality = QUALITY[model.config.head][0]
+    quality = QUALITY[model.config.head]
     loss, measure, correct, seen = 0.0, 0.0, 0.0, 0
     for start in range(0, len(data), batch_size):
         index = np.arange(start, min(start + batch_size, len(data)))

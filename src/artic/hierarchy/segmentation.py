@@ -247,11 +247,8 @@ class StepLosses(NamedTuple):
     terms: dict[str, float]  # the head's loss terms and its quality measure (QUALITY)
 
 
-#: per head, the training term that measures quality and whether higher is better
-QUALITY: dict[str, tuple[str, bool]] = {
-    "masks": ("matched_iou", True),
-    "votes": ("offset_error", False),
-}
+#: per head, the loss term that measures its quality during training (metrics.csv)
+QUALITY: dict[str, str] = {"masks": "matched_iou", "votes": "offset_error"}
 
 
 def head_loss(
