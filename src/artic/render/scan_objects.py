@@ -99,16 +99,44 @@ def object_motion_types(
     return motion
 
 
+def dataset_object(ds: ObjectDataset, object_id: int) -> ArticulatedObject:
+    """Object `object_id` of `ds`: built from its spec.json when the spec's category is one
+    of artic's generators (the registries of `objects.categories` and
+    `objects.structures`), else from its object.urdf and meshes (both verified against the
+    manifest), as `artic.objects.partnet` reads a URDF: objects written in
+    generate-dataset's layout by another generator (bench/independent_objects.py) scan
+    like artic's own."""
+    from artic.artifacts.manifest import verify_file
+    from artic.objects.categories import CATEGORIES
+    from artic.objects.families import build_object, spec_category
+    from artic.objects.partnet import mesh_filenames, parse_obj, partnet_object
+    from artic.objects.structures import STRUCTURES
+
+    spec = verify_file(ds.root, ds.manifest, f"{object_dir(object_id)}/spec.json")
+    try:
+        category = spec_category(spec.read_text())
+    except ValueError:
+        category = None  # ds.spec names the problem
+    if category is None or category in CATEGORIES or category in STRUCTURES:
+        return build_object(ds.spec(object_id))
+    urdf = ds.urdf(object_id)
+    text = urdf.read_text()
+    meshes = {
+        name: parse_obj((urdf.parent / name).read_bytes(), source=str(urdf.parent / name))
+        for name in mesh_filenames(text, source=str(urdf))
+    }
+    return partnet_object(text, meshes, source=str(urdf)).object
+
+
 def scan_object(
     cfg: RenderScanConfig, ds: ObjectDataset, object_id: int, backend: DepthBackend
 ) -> tuple[KinematicTree, list[ScannedCloud]]:
     """Object `object_id`'s ground-truth tree and its clouds (pose by pose, clean then
     noisy), rendered with `backend` (`render.backend.make_backend` of cfg.camera)."""
-    from artic.objects.families import build_object
     from artic.render.scan import fuse_views_many, object_tree, sample_surface, view_poses
 
     row = next(r for r in ds.rows if r.object_id == object_id)
-    obj = build_object(ds.spec(object_id))
+    obj = dataset_object(ds, object_id)
     qs, source = object_poses(ds, object_id, obj, cfg)
     motion = object_motion_types(ds, object_id, obj)
     tree = object_tree(obj, motion)
