@@ -15,6 +15,7 @@ from artic.evaluation.segmentation import (
     motion_type_accuracy,
     object_detections,
 )
+from artic.hierarchy.cloud_cache import cloud_features
 from artic.hierarchy.models import load_segmenter, save_segmenter
 from artic.hierarchy.segmentation import (
     InferenceConfig,
@@ -136,3 +137,12 @@ def test_votes_net_overfits_one_cloud_of_three_boxes_and_round_trips(tmp_path) -
     again = segment(loaded.model, points, loaded.inference)
     for a, b in zip(result, again, strict=True):
         np.testing.assert_array_equal(a, b)
+    # a prepared cloud's cached features give the same parts as computing them here
+    features = cloud_features(points, config, tmp_path / "cache")
+    cached = segment(
+        loaded.model, points, loaded.inference, features.normals, features.neighbourhoods
+    )
+    for a, b in zip(result, cached, strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="n_points"):
+        segment(model, points, InferenceConfig(n_points=100), features.normals)

@@ -293,11 +293,14 @@ def score_segmenter(
     model: PartSegmentationNet, data: SegmentationData, inference: InferenceConfig
 ) -> SegmentationScores:
     """Run `segment` on every prepared cloud (already at the network's input size, so no
-    further downsampling) and score it against the ground truth (PartNet protocol)."""
+    further downsampling; with its cached normals and neighbourhoods when `data` has them)
+    and score it against the ground truth (PartNet protocol)."""
     detections: dict[bool, list[Any]] = {False: [], True: []}
     accuracy = []
     for i in range(len(data)):
-        result = segment(model, data.points[i], inference)
+        normals = None if data.normals is None else data.normals[i]
+        index = None if data.neighbourhoods is None else data.neighbourhoods[i]
+        result = segment(model, data.points[i], inference, normals, index)
         detections[bool(data.noisy[i])].append(
             object_detections(result.part_id, result.part_confidence, data.part_id[i])
         )

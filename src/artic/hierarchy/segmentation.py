@@ -312,8 +312,15 @@ def segment(
     model: PartSegmentationNet,
     points: NDArray[np.floating],
     config: InferenceConfig | None = None,
+    normals: NDArray[np.float32] | None = None,
+    neighbourhoods: BackboneIndex | None = None,
 ) -> SegmentationResult:
     """Segment one cloud into parts with motion types: points (N, 3), metres.
+
+    normals (N, 3) and neighbourhoods (`cloud_cache.cloud_features`): a cloud already at
+    the network's input size (a prepared training cloud) whose features were computed
+    once; without them they are computed here. ValueError for a cloud larger than
+    `n_points` (its samples would not be the points those features belong to).
 
     1. Downsample to `n_points` by farthest-point sampling (deterministic, from point 0).
     2. Run the network (with the samples' normals if it reads them).
@@ -341,15 +348,18 @@ def segment(
         if len(pts) > config.n_points
         else np.arange(len(pts))
     )
+    if len(sample) < len(pts) and (normals is not None or neighbourhoods is not None):
+        raise ValueError("precomputed features need a cloud of at most n_points points")
     device = next(model.parameters()).device
-    normals = None
-    if model.config.normals:
+    if model.config.normals and normals is None:
         from artic.hierarchy.normals import estimate_normals
 
-        normals = torch.from_numpy(estimate_normals(pts[sample])).to(device)[None]
+        normals = estimate_normals(pts[sample])
+    normals_t = None if normals is None else torch.from_numpy(normals).to(device)[None]
+    index = None if neighbourhoods is None else neighbourhoods.to(device)
     model.eval()
     with torch.no_grad():
-        out = model(torch.from_numpy(pts[sample]).to(device)[None], normals)
+        out = model(torch.from_numpy(pts[sample]).to(device)[None], normals_t, index)
     min_size = max(config.min_points, int(np.ceil(config.min_fraction * len(sample))))
     if isinstance(out, VoteOutput):
         clusters, motion_prob = vote_parts(out, config.cluster_radius, min_size)
