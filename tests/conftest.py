@@ -38,3 +38,14 @@ def tiny_depth(tiny_objects: Path, tmp_path_factory: pytest.TempPathFactory) -> 
     code, _, err = run_cli("render-depth", "debug=tiny", f"dataset={tiny_objects}", f"out={out}")
     assert code == 0, err
     return out
+
+
+@pytest.fixture(scope="session")
+def tiny_model(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A train-mdn output (microwave, debug=tiny) on `tiny_depth`; read, never changed."""
+    out = tmp_path_factory.mktemp("mdn") / "microwave"
+    code, _, err = run_cli(
+        "train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}", f"out={out}"
+    )
+    assert code == 0, err
+    return out

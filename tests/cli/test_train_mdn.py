@@ -19,16 +19,6 @@ from artic.kinematics.config import MDN_KIND as KIND
 from cli_runner import run_cli
 
 
-@pytest.fixture(scope="module")
-def tiny_model(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("mdn") / "microwave"
-    code, _, err = run_cli(
-        "train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}", f"out={out}"
-    )
-    assert code == 0, err
-    return out
-
-
 def test_train_mdn_writes_model_metrics_and_card(tiny_model):
     for name in ("model.pt", "metrics.csv", "model.json", "model_card.md", "manifest.json"):
         assert (tiny_model / name).is_file(), name

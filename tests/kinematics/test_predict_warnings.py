@@ -31,16 +31,6 @@ from cli_runner import run_cli
 
 
 @pytest.fixture(scope="module")
-def tiny_model(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("mdn") / "microwave"
-    code, _, err = run_cli(
-        "train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}", f"out={out}"
-    )
-    assert code == 0, err
-    return out
-
-
-@pytest.fixture(scope="module")
 def model_pt(tiny_model: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The tiny model's model.pt away from its folder: predict does not add the warning
     about a debug=tiny model (read from the folder's manifest), so only ours remain."""
