@@ -35,3 +35,27 @@ def test_hydra_errors_become_one_line_input_errors():
 def test_validation_error_names_the_field():
     with pytest.raises(InputError, match=r"config field count: .*greater than or equal to 1"):
         validate(ShardConfig, {"index": 0, "count": 0})
+
+
+def test_thesis_category_variants_are_the_generators_data_under_the_same_name():
+    for name in ("cabinet", "cabinet2", "microwave"):
+        default = compose("generate_dataset", [f"category={name}"])
+        thesis = compose("generate_dataset", [f"category=thesis/{name}"])
+        assert thesis["category"]["name"] == name
+        assert thesis["out"] == default["out"] == f"artifacts/objects/{name}"
+        # everything but the sizes and hinge sides is the default category's
+        keep = {"geometry", "chirality"}
+        assert {k: v for k, v in thesis["category"].items() if k not in keep} == {
+            k: v for k, v in default["category"].items() if k not in keep
+        }
+    cabinet = compose("generate_dataset", ["category=thesis/cabinet"])["category"]
+    assert cabinet["geometry"] == {"depth": [0.28, 0.32], "width": [0.3, 0.7],
+                                   "height": [0.3, 0.7]}  # fmt: skip
+    default = compose("generate_dataset", ["category=cabinet"])["category"]["geometry"]
+    for key, (lo, hi) in cabinet["geometry"].items():
+        assert default[key][0] <= lo and hi <= default[key][1]  # the union holds both
+    assert default["depth"][1] >= 0.64 and default["width"][1] >= 1.4  # Table A.1's
+    assert compose("generate_dataset", ["category=thesis/microwave"])["category"]["chirality"] == [
+        -1
+    ]
+    assert compose("generate_dataset", [])["category"]["chirality"] == [-1, 1]

@@ -1,11 +1,12 @@
-"""Table 3.1 errors: the yaw error and the thesis' clamped-quaternion rotation metric."""
+"""Table 3.1 errors: the yaw error, the thesis' clamped-quaternion rotation metric and the
+hinge side."""
 
 import numpy as np
 import pytest
 
 from artic.evaluation.kinematics import kinematic_errors, thesis_axis_angle
 
-COLUMNS = ["pose_yaw", "j0_q", "j0_origin_x", "j0_origin_y", "j0_origin_z"]
+COLUMNS = ["pose_yaw", "chirality", "j0_q", "j0_origin_x", "j0_origin_y", "j0_origin_z"]
 
 
 def _labels(yaw: np.ndarray) -> np.ndarray:
@@ -35,3 +36,12 @@ def test_thesis_metric_halves_a_mean_predictors_error_and_is_zero_when_exact():
                             COLUMNS, 1, "revolute")  # fmt: skip
     np.testing.assert_allclose(both["rotation_thesis_deg"], [0.0, np.degrees(0.4)], atol=1e-9)
     np.testing.assert_allclose(both["rotation_deg"], np.degrees([0.4, 0.4]), atol=1e-9)
+
+
+def test_hinge_side_is_wrong_exactly_where_the_chirality_signs_differ():
+    true = _labels(np.zeros(4))
+    true[:, 1] = [1.0, 1.0, -1.0, -1.0]
+    pred = _labels(np.zeros(4))
+    pred[:, 1] = [0.3, -0.2, -0.9, 0.0]  # a chirality of 0 reads as +1 (`Predictor`)
+    e = kinematic_errors(pred, true, COLUMNS, 1, "revolute")
+    np.testing.assert_array_equal(e["hinge_side_wrong_pct"], [0.0, 100.0, 0.0, 100.0])
