@@ -1,0 +1,1019 @@
+"""A second generator of microwaves and cabinets for Chapter 3 (issue 24, "Done when"):
+objects the MDN never trained on, rendered by a camera of another tool, predicted through
+`artic predict`'s code path and scored against their true labels.
+
+    .venv/bin/python bench/independent_mdn_objects.py --category microwave|cabinet \
+        --objects 60 --seed 0 --model DIR [--report DIR] --out DIR \
+        [--sides both|left|right] [--sizes table_a1|generator] [--builder bench|artic]
+
+`--model`: a `train-mdn` output folder (its `model.pt`) or a model file, of `--category`.
+`--report`: an `artic evaluate mdn` output folder of that model: the median axis-position
+error of its network ("Ours" rows of its errors.csv) on withheld training-generator
+objects, the denominator of `ratio`. `--sides`: both = object i hinged on the camera's
+right (chirality +1) for even i, left (-1) for odd i, so exactly half each.
+`--sizes`: cabinets of Table A.1 (56-64 x 60-140 x 60-140 cm) or of the thesis'
+generator (half of them: 28-32 x 30-70 x 30-70 cm); microwaves have one range, Table
+A.1's (the generator's agrees), so the option only names the row for them.
+`--builder artic`: the control. The same numbers (sizes, hinge side, pose, q), camera,
+placement and noise, but the object built by artic's own builder (`label_spec` through
+`artic.objects.categories.build`): what is left of the error is the camera, the placement
+and the noise; the difference to the default is this generator's objects.
+
+Writes into `--out` (a new or empty folder; built in a temporary sibling, renamed in
+place): `images/NNNNNN.png` (depth, 16-bit millimetres), `camera.json` (the six
+intrinsics and a `frame_id`, as ROS tools add), `labels.csv` (per image: object, side and
+artic's label vector), `objects.jsonl` (each object's spec), `errors.csv` (per image:
+axis-position error cm as `artic.evaluation.kinematics.kinematic_errors` defines it,
+yaw error deg, configuration error deg, hinge side right, whether predict warned and its
+warnings) and `summary.csv` (`SUMMARY_COLUMNS`: one row per side present, and "both" when
+both are); prints the summary. Same seed, same bytes (images, labels, objects): object i
+is drawn from `default_rng([seed, i, STREAM])`, its sensor noise from `[seed, i, STREAM, 1]`.
+
+**Labels: artic's convention exactly** (src/artic/objects/labels.py, docs/objects.md):
+the label vector is `artic.objects.labels.image_labels(spec.label_spec(), obj, [q])`,
+with an artic `ObjectSpec` holding these numbers:
+- pose x, y, z: the centre of the bottom of the object (what it stands on: feet, legs
+  or plinth included) in the camera frame; yaw about +z, 0 = front facing the camera;
+- depth: the body's (carcass's) extent along its x, the door in front of it not counted;
+  width: the body's extent along y (a cabinet's top-slab overhang not counted); height:
+  the whole object's, floor to top (feet, plinth or legs and top slab included);
+- chirality +1: hinge on the object's -y edge (the camera's right at yaw 0), axis +z;
+  -1: hinge on +y, axis -z; q >= 0 swings the free edge towards the camera;
+- the joint origin: the hinge edge's bottom point on the body's front plane (the door's
+  back face), as artic's `vertical_door`; the part origin: the centre of the door link's
+  bounding box in the joint frame (handles are their own link, as artic's are).
+`from_artic_spec` builds this file's object from an artic microwave or cabinet spec with
+no extra details; the tests check that its labels equal those of artic's builder to 1e-6.
+
+How the objects differ from the training generator (`artic.objects.categories`,
+conf/common/category/{microwave,cabinet}.yaml):
+
+- microwave sizes. Training: independent uniforms over Table A.1 (depth 0.25-0.56,
+  width 0.40-0.76, height 0.22-0.45 m). Here: width 0.40 + 0.36 Beta(2, 3) (most near
+  0.5 m, as sold), height = width x U(0.52, 0.66), depth = width x U(0.70, 0.90), each
+  clipped to Table A.1's range.
+- microwave body. Training: a 2 cm shell open across the front, a flat control-panel plate
+  (1/4 of the width). Here: 6-12 mm sheet walls round a cavity behind the door only; a
+  solid electronics block behind the control panel (20-30 % of the width); four feet
+  8-20 mm tall; the panel carries a display bump (90 %) and a keypad of 3-5 rows of 3
+  buttons (85 %), each standing 2-4 mm proud.
+- microwave door. Training: a flat 2 cm slab with a bar handle on posts. Here: 3-4.5 cm
+  thick, 0-6 mm short of the body's top and bottom, a window panel recessed 6-15 mm in a
+  frame (85 %), a grip recess in the free-edge stile (80 %; otherwise a push-button door,
+  no grip at all), never a bar handle.
+- cabinet sizes. Training: Table A.1 halved. Here: Table A.1 (`--sizes table_a1`) or
+  its half (`generator`), uniform; the height is the overall height.
+- cabinet construction. Training: a 2 cm shell on the floor, the door the whole front.
+  Here: 16-20 mm carcass with 0-2 shelves; a plinth recessed 3-6 cm (45 %), four legs
+  (35 %) or neither (wall-hung, 20 %), 6-15 cm tall (half for generator sizes); a top
+  slab 18-30 mm thick overhanging 0-30 mm; an overlay door 16-22 mm thick with 3-6 mm
+  gaps all round, flat or panelled (a frame round a panel recessed 5-10 mm, 50 %); a knob
+  (box or 16-sided cylinder, 50 %) or a bar on two posts, 4-6 cm from the free edge.
+- hinge side. Training: the microwave's [1] (artic's default), the cabinet's [-1, 1]
+  drawn. Here: `--sides`.
+- camera and placement. Training: `thesis_sim` (192x108, f = 105.4 px) or
+  `kinect_v1_128`, positions uniform over Table A.2. Here: 640x480, fx = fy = 525,
+  cx = 319.5, cy = 239.5 (the issue's camera, artic's camera convention), so `predict`
+  reprojects every image into the model's camera; the object at a distance from the
+  nearest at which the bounding box of the whole object at its configuration (open door
+  included) projects inside the image with `MARGIN_PX` to spare, to `DISTANCE_SPAN`
+  beyond it, then y and z uniform over the positions that keep it inside. No support
+  plane (as in training). One image per object.
+- configuration U(0, pi/2) (Table A.2) and yaw U(-pi/4, pi/4), as in training.
+- sensor noise. Training: conf/common/noise/kinect.yaml (lateral 0.5 px, axial
+  sigma 1.2 mm + 1.9 mm/m^2 (z - 0.4)^2, edge dropout 0.5, dropout 0.005). Here:
+  `NOISE`: lateral 0.8 px, axial 2 mm + 2.5 mm/m^2 (z - 0.4)^2, edge dropout 0.7,
+  dropout 0.01 (a noisier sensor), at the 640x480 image's focal length.
+
+Prediction is `artic.kinematics.predict.predict_image` (what `artic predict` runs: the
+camera file read with its extra field, the reprojection, the domain warnings) with the
+CLI's default estimator (most-likely). `warned` in errors.csv is 1 when predict warned
+about the estimate (`ESTIMATE_WARNINGS`: outside the training ranges, or the mixture
+split between hinge sides); the notes every image of this bench gets (the camera file's
+ignored `frame_id`, the reprojection into the training camera, a smoke model) are in
+`warnings` but not counted.
+"""
+
+from __future__ import annotations
+
+from artic.reproducibility import pin_numerics
+
+pin_numerics()  # before NumPy loads, as the `artic` command does
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import logging  # noqa: E402
+import math  # noqa: E402
+import shutil  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any, Final, Literal, NamedTuple, NoReturn  # noqa: E402
+
+import numpy as np  # noqa: E402
+from numpy.typing import NDArray  # noqa: E402
+from pydantic import BaseModel, ConfigDict, Field  # noqa: E402
+
+from artic.errors import InputError  # noqa: E402
+from artic.geometry.camera import CameraIntrinsics  # noqa: E402
+from artic.geometry.transforms import make_transform, transform_points  # noqa: E402
+from artic.objects.model import ArticulatedObject, Joint, Link, TriangleMesh  # noqa: E402
+from artic.objects.parts import Box, mass_properties, union_mesh  # noqa: E402
+from artic.objects.spec import ObjectSpec, PartsConfig, Pose  # noqa: E402
+from artic.render.noise import SensorNoiseConfig  # noqa: E402
+
+Category = Literal["microwave", "cabinet"]
+Sides = Literal["both", "left", "right"]
+Sizes = Literal["table_a1", "generator"]
+Builder = Literal["bench", "artic"]
+
+CATEGORIES: Final = ("microwave", "cabinet")
+STREAM: Final = 0x24D  # object i: default_rng([seed, i, STREAM]); its noise: [..., 1]
+CAMERA: Final = CameraIntrinsics(fx=525.0, fy=525.0, cx=319.5, cy=239.5, width=640, height=480)
+FRAME_ID: Final = "bench_depth_camera"
+"""The extra field of camera.json (camera files of other tools carry a frame name)."""
+NOISE: Final = SensorNoiseConfig(
+    lateral_sigma_px=0.8, axial_a=0.002, axial_b=0.0025, edge_dropout=0.7, dropout=0.01
+)
+"""This bench's sensor noise; the training data's is conf/common/noise/kinect.yaml."""
+MARGIN_PX: Final = 8.0  # the object's bounding box stays this far inside the image
+DISTANCE_SPAN: Final = 0.8  # m: x from the nearest distance that fits to this beyond it
+MIN_DEPTH: Final = 0.5  # m: nearest point of the object (the sensor sees from 0.4 m)
+CONFIGURATION: Final = (0.0, math.pi / 2)  # Table A.2
+YAW: Final = (-math.pi / 4, math.pi / 4)  # Table A.2
+ESTIMATOR: Final = "most-likely"  # `artic predict`'s default
+ESTIMATE_WARNINGS: Final = ("the estimate lies outside", "the mixture is split")
+"""Prefixes of predict's warnings about the estimate (kinematics/predict.py)."""
+CABINET_SIZES: Final[dict[str, dict[str, tuple[float, float]]]] = {
+    "table_a1": {"depth": (0.56, 0.64), "width": (0.6, 1.4), "height": (0.6, 1.4)},
+    "generator": {"depth": (0.28, 0.32), "width": (0.3, 0.7), "height": (0.3, 0.7)},
+}
+MICROWAVE_SIZES: Final = {"depth": (0.25, 0.56), "width": (0.40, 0.76), "height": (0.22, 0.45)}
+SUMMARY_COLUMNS: Final = (
+    "category",
+    "sides",
+    "sizes",
+    "images",
+    "axis_position_cm_median",
+    "yaw_deg_median",
+    "configuration_deg_median",
+    "hinge_side_right_pct",
+    "warned_pct",
+    "withheld_axis_position_cm_median",
+    "ratio",
+)
+ERROR_COLUMNS: Final = (
+    "image",
+    "object_id",
+    "side",
+    "chirality",
+    "chirality_estimate",
+    "axis_position_cm",
+    "yaw_deg",
+    "configuration_deg",
+    "hinge_side_right",
+    "warned",
+    "warnings",
+)
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+# ---------------------------------------------------------------------------- the spec
+
+
+class MicrowaveBuild(_Frozen):
+    """How one microwave is made, metres (0 or False: the detail is absent)."""
+
+    kind: Literal["microwave"] = "microwave"
+    wall: float = Field(gt=0, description="sheet walls round the cavity")
+    door_thickness: float = Field(gt=0, description="door slab")
+    gap: float = Field(ge=0, description="between the door's free edge and the panel")
+    door_margin: float = Field(ge=0, description="door short of the body's bottom and top")
+    panel_fraction: float = Field(gt=0, lt=1, description="control panel share of the width")
+    foot_height: float = Field(ge=0, description="feet under the body; 0: none")
+    foot_side: float = Field(gt=0, description="square feet's side")
+    window: bool = Field(description="a window panel recessed in a frame")
+    hinge_stile: float = Field(ge=0, description="window frame at the hinge edge")
+    free_stile: float = Field(ge=0, description="window frame at the free edge")
+    rail: float = Field(ge=0, description="window frame at top and bottom")
+    window_recess: float = Field(ge=0, description="window panel behind the door's face")
+    grip: bool = Field(description="a grip recess in the free-edge stile")
+    grip_width: float = Field(ge=0, description="grip recess along the door's width")
+    grip_height: float = Field(ge=0, le=1, description="grip recess, share of door height")
+    grip_depth: float = Field(ge=0, description="grip recess behind the door's face")
+    display: bool = Field(description="a display bump on the control panel")
+    button_rows: int = Field(ge=0, le=6, description="keypad rows of 3 buttons; 0: none")
+    relief: float = Field(ge=0, description="how far display and buttons stand proud")
+
+
+class CabinetBuild(_Frozen):
+    """How one cabinet is made, metres (0: the detail is absent)."""
+
+    kind: Literal["cabinet"] = "cabinet"
+    wall: float = Field(gt=0, description="carcass panels")
+    door_thickness: float = Field(gt=0, description="overlay door")
+    gap: float = Field(ge=0, description="round the door")
+    support: Literal["none", "plinth", "legs"]
+    support_height: float = Field(ge=0, description="plinth or legs; 0 with none")
+    support_inset: float = Field(ge=0, description="plinth recess behind the front, or leg side")
+    top: float = Field(ge=0, description="top slab thickness; 0: none")
+    overhang: float = Field(ge=0, description="top slab overhang, front and sides")
+    shelves: int = Field(ge=0, le=4)
+    panelled: bool = Field(description="door: a frame round a recessed panel")
+    frame: float = Field(ge=0, description="panelled door's frame width")
+    recess: float = Field(ge=0, description="panelled door's panel behind the face")
+    handle: Literal["none", "knob_box", "knob_round", "bar"]
+    handle_size: float = Field(gt=0, description="knob side or diameter; bar length")
+    handle_inset: float = Field(gt=0, description="handle centre to the free edge")
+
+
+class BenchSpec(_Frozen):
+    """One object and its image: the numbers the labels are made of (module docstring,
+    "Labels"), the configuration q it is rendered at and how it is built."""
+
+    category: Category
+    index: int = Field(ge=0)
+    depth: float = Field(gt=0, description="body extent along x, m")
+    width: float = Field(gt=0, description="body extent along y, m")
+    height: float = Field(gt=0, description="whole object along z, m")
+    chirality: Literal[-1, 1]
+    pose: Pose
+    configuration: float = Field(description="the door's q in the image, rad")
+    upper: float = Field(gt=0, description="the joint's upper limit, rad")
+    build: MicrowaveBuild | CabinetBuild = Field(discriminator="kind")
+
+    def label_spec(self) -> ObjectSpec:
+        """artic's `ObjectSpec` of these numbers, for `image_labels`."""
+        return ObjectSpec(
+            category=self.category,
+            index=self.index,
+            dof=1,
+            joint_type="revolute",
+            depth=self.depth,
+            width=self.width,
+            height=self.height,
+            chirality=self.chirality,
+            pose=self.pose,
+            joint_limits=((0.0, self.upper),),
+            parts=PartsConfig(),
+        )
+
+
+def from_artic_spec(spec: ObjectSpec, configuration: float) -> BenchSpec:
+    """This file's object with the numbers of artic's microwave or cabinet `spec` and no
+    extra details: its door where artic's builder puts it (for the convention test)."""
+    p = spec.parts
+    build: MicrowaveBuild | CabinetBuild
+    if spec.category == "microwave":
+        build = MicrowaveBuild(
+            wall=p.panel_thickness, door_thickness=p.door_thickness, gap=p.gap,
+            door_margin=0.0, panel_fraction=p.control_panel_fraction, foot_height=0.0,
+            foot_side=0.03, window=False, hinge_stile=0.0, free_stile=0.0, rail=0.0,
+            window_recess=0.0, grip=False, grip_width=0.0, grip_height=0.0, grip_depth=0.0,
+            display=False, button_rows=0, relief=0.0,
+        )  # fmt: skip
+    elif spec.category == "cabinet":
+        build = CabinetBuild(
+            wall=p.panel_thickness, door_thickness=p.door_thickness, gap=0.0, support="none",
+            support_height=0.0, support_inset=0.0, top=0.0, overhang=0.0, shelves=0,
+            panelled=False, frame=0.0, recess=0.0, handle="bar", handle_size=0.2,
+            handle_inset=p.handle_inset,
+        )  # fmt: skip
+    else:
+        raise InputError(f"category: {spec.category!r}; expected one of {', '.join(CATEGORIES)}")
+    return BenchSpec(
+        category=spec.category,
+        index=spec.index,
+        depth=spec.depth,
+        width=spec.width,
+        height=spec.height,
+        chirality=spec.chirality,
+        pose=spec.pose,
+        configuration=configuration,
+        upper=spec.joint_limits[0][1],
+        build=build,
+    )
+
+
+# ---------------------------------------------------------------------------- sampling
+
+
+def _u(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(rng.uniform(lo, hi))
+
+
+def _clip(value: float, bounds: tuple[float, float]) -> float:
+    return float(min(max(value, bounds[0]), bounds[1]))
+
+
+def sample_microwave(rng: np.random.Generator, index: int, chirality: Literal[-1, 1]) -> BenchSpec:
+    """A microwave's sizes and construction (pose: yaw only; `place` sets x, y, z)."""
+    width = 0.40 + 0.36 * float(rng.beta(2.0, 3.0))
+    height = _clip(width * _u(rng, 0.52, 0.66), MICROWAVE_SIZES["height"])
+    depth = _clip(width * _u(rng, 0.70, 0.90), MICROWAVE_SIZES["depth"])
+    feet = _u(rng, 0.008, 0.02)
+    panel = _u(rng, 0.20, 0.30)
+    door_w = width * (1 - panel)
+    door_h = height - feet
+    window = bool(rng.random() < 0.85)
+    grip = bool(rng.random() < 0.8)
+    build = MicrowaveBuild(
+        wall=_u(rng, 0.006, 0.012),
+        door_thickness=_u(rng, 0.03, 0.045),
+        gap=_u(rng, 0.002, 0.004),
+        door_margin=_u(rng, 0.0, 0.006),
+        panel_fraction=panel,
+        foot_height=feet,
+        foot_side=_u(rng, 0.02, 0.04),
+        window=window,
+        hinge_stile=door_w * _u(rng, 0.08, 0.14),
+        free_stile=door_w * _u(rng, 0.14, 0.22),
+        rail=door_h * _u(rng, 0.12, 0.2),
+        window_recess=_u(rng, 0.006, 0.015),
+        grip=grip,
+        grip_width=door_w * _u(rng, 0.05, 0.08),
+        grip_height=_u(rng, 0.3, 0.6),
+        grip_depth=_u(rng, 0.01, 0.02),
+        display=bool(rng.random() < 0.9),
+        button_rows=int(rng.integers(3, 6)) if rng.random() < 0.85 else 0,
+        relief=_u(rng, 0.002, 0.004),
+    )
+    return BenchSpec(
+        category="microwave",
+        index=index,
+        depth=depth,
+        width=width,
+        height=height,
+        chirality=chirality,
+        pose=Pose(x=0.0, y=0.0, z=0.0, yaw=_u(rng, *YAW)),
+        configuration=_u(rng, *CONFIGURATION),
+        upper=CONFIGURATION[1],
+        build=build,
+    )
+
+
+def sample_cabinet(
+    rng: np.random.Generator, index: int, chirality: Literal[-1, 1], sizes: Sizes
+) -> BenchSpec:
+    """A cabinet's sizes (`CABINET_SIZES[sizes]`) and construction (pose: yaw only)."""
+    ranges = CABINET_SIZES[sizes]
+    depth, width, height = (_u(rng, *ranges[k]) for k in ("depth", "width", "height"))
+    scale = 1.0 if sizes == "table_a1" else 0.5
+    pick = float(rng.random())
+    support: Literal["none", "plinth", "legs"] = (
+        "plinth" if pick < 0.45 else "legs" if pick < 0.8 else "none"
+    )
+    support_height = 0.0 if support == "none" else scale * _u(rng, 0.06, 0.15)
+    inset = _u(rng, 0.03, 0.06) if support == "plinth" else _u(rng, 0.03, 0.05)
+    handle = ("knob_box", "knob_round", "bar", "bar")[int(rng.integers(0, 4))]
+    build = CabinetBuild(
+        wall=_u(rng, 0.016, 0.02),
+        door_thickness=_u(rng, 0.016, 0.022),
+        gap=_u(rng, 0.003, 0.006),
+        support=support,
+        support_height=support_height,
+        support_inset=inset,
+        top=_u(rng, 0.018, 0.03),
+        overhang=_u(rng, 0.0, 0.03),
+        shelves=int(rng.integers(0, 3)),
+        panelled=bool(rng.random() < 0.5),
+        frame=_u(rng, 0.05, 0.08) * scale,
+        recess=_u(rng, 0.005, 0.01),
+        handle=handle,
+        handle_size=_u(rng, 0.1, 0.3) * scale if handle == "bar" else _u(rng, 0.02, 0.035),
+        handle_inset=_u(rng, 0.04, 0.06),
+    )
+    return BenchSpec(
+        category="cabinet",
+        index=index,
+        depth=depth,
+        width=width,
+        height=height,
+        chirality=chirality,
+        pose=Pose(x=0.0, y=0.0, z=0.0, yaw=_u(rng, *YAW)),
+        configuration=_u(rng, *CONFIGURATION),
+        upper=CONFIGURATION[1],
+        build=build,
+    )
+
+
+# ---------------------------------------------------------------------------- geometry
+# Boxes are written for chirality +1 (hinge on -y) and mirrored in y for -1.
+
+
+def _mirror(box: Box, chirality: int) -> Box:
+    if chirality == 1:
+        return box
+    return Box(box.x, (-box.y[1], -box.y[0]), box.z)
+
+
+def _link(name: str, role: str, mesh: TriangleMesh, density: float) -> Link:
+    return Link(name=name, role=role, mesh=mesh, inertial=mass_properties(mesh, density))
+
+
+def _join(meshes: Sequence[TriangleMesh]) -> TriangleMesh:
+    """One link mesh of closed meshes (vertices stacked, triangles renumbered)."""
+    offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
+    return TriangleMesh(
+        np.concatenate([m.vertices for m in meshes]).astype(np.float64),
+        np.concatenate([m.triangles + o for m, o in zip(meshes, offsets, strict=True)]).astype(
+            np.int32
+        ),
+    )
+
+
+class _Door(NamedTuple):
+    """A door: joint origin (body frame), its boxes in the joint frame (chirality +1
+    coordinates: y from 0 at the hinge to `width`) and its handle link, if any."""
+
+    origin: tuple[float, float, float]
+    width: float
+    height: float
+    boxes: list[Box]
+    handle: tuple[TriangleMesh, tuple[float, float, float]] | None
+
+
+def _assemble(spec: BenchSpec, body: list[Box], door: _Door) -> ArticulatedObject:
+    """body -> door_0 (revolute joint_0) [-> handle_0 (fixed)], mirrored by chirality."""
+    c = spec.chirality
+    body_mesh = union_mesh([_mirror(b, c) for b in body])
+    door_mesh = union_mesh([_mirror(b, c) for b in door.boxes])
+    links = [_link("body", "body", body_mesh, 600.0), _link("door_0", "door", door_mesh, 500.0)]
+    joints = [
+        Joint(
+            name="joint_0",
+            type="revolute",
+            parent="body",
+            child="door_0",
+            origin=make_transform(translation=np.array(door.origin) * np.array([1.0, c, 1.0])),
+            axis=np.array([0.0, 0.0, float(c)]),
+            limits=(0.0, spec.upper),
+            effort=50.0,
+            velocity=2.0,
+            damping=0.1,
+            friction=0.05,
+        )
+    ]
+    if door.handle is not None:
+        mesh, (hx, hy, hz) = door.handle
+        vertices = mesh.vertices * np.array([1.0, c, 1.0])
+        triangles = mesh.triangles if c == 1 else mesh.triangles[:, ::-1]  # keep outward
+        links.append(_link("handle_0", "handle", TriangleMesh(vertices, triangles), 1000.0))
+        joints.append(
+            Joint(
+                name="handle_0_fixed",
+                type="fixed",
+                parent="door_0",
+                child="handle_0",
+                origin=make_transform(translation=np.array([hx, c * hy, hz])),
+            )
+        )
+    return ArticulatedObject(
+        name=f"bench_{spec.category}_{spec.index}",
+        links=tuple(links),
+        joints=tuple(joints),
+        base_pose=spec.pose.matrix(),
+    )
+
+
+def _microwave_door(spec: BenchSpec, b: MicrowaveBuild) -> tuple[float, list[Box]]:
+    """The door's y extent from the hinge and its boxes (joint frame, chirality +1)."""
+    width = spec.width * (1 - b.panel_fraction) - b.gap
+    height = spec.height - b.foot_height - 2 * b.door_margin
+    t = b.door_thickness
+    face, full = (-t, 0.0), (0.0, height)
+    if not b.window and not b.grip:
+        return width, [Box(face, (0.0, width), full)]
+    hs, fs = (b.hinge_stile, b.free_stile) if b.window else (0.0, max(b.grip_width, 0.02))
+    boxes = []
+    if hs > 0:
+        boxes.append(Box(face, (0.0, hs), full))  # hinge stile
+    if b.window:
+        middle = (hs, width - fs)
+        boxes += [
+            Box(face, middle, (0.0, b.rail)),
+            Box(face, middle, (height - b.rail, height)),
+            Box((-t + b.window_recess, 0.0), middle, (b.rail, height - b.rail)),  # window
+        ]
+    else:
+        boxes.append(Box(face, (0.0, width - fs), full))
+    free = (width - fs, width)
+    if b.grip:  # a recess open to the free edge, centred on the door's height
+        lo = 0.5 * height * (1 - b.grip_height)
+        hi = height - lo
+        grip_y = (width - b.grip_width, width)
+        boxes += [
+            Box(face, free, (0.0, lo)),
+            Box(face, free, (hi, height)),
+            Box((-t + b.grip_depth, 0.0), grip_y, (lo, hi)),
+        ]
+        if b.grip_width < fs:
+            boxes.append(Box(face, (width - fs, width - b.grip_width), (lo, hi)))
+    else:
+        boxes.append(Box(face, free, full))
+    return width, boxes
+
+
+def build_microwave(spec: BenchSpec) -> ArticulatedObject:
+    """A microwave: feet, a sheet-metal cavity behind the door, an electronics block
+    behind the control panel (display, keypad) on the free-edge side; the door hinged
+    on the chirality side (module docstring)."""
+    b = spec.build
+    assert isinstance(b, MicrowaveBuild)
+    d, w, t = spec.depth, spec.width, b.wall
+    x0, x1, y0, y1 = -d / 2, d / 2, -w / 2, w / 2
+    z0, z1 = b.foot_height, spec.height
+    panel = b.panel_fraction * w
+    y_block = y1 - panel - b.gap  # the electronics block's side facing the cavity
+    body = [
+        Box((x1 - t, x1), (y0, y1), (z0, z1)),  # back
+        Box((x0, x1 - t), (y0, y0 + t), (z0, z1)),  # hinge-side wall
+        Box((x0, x1 - t), (y0 + t, y_block), (z0, z0 + t)),  # floor
+        Box((x0, x1 - t), (y0 + t, y_block), (z1 - t, z1)),  # roof
+        Box((x0, x1 - t), (y_block, y1), (z0, z1)),  # electronics block
+        Box((x0 - b.door_thickness, x0), (y1 - panel, y1), (z0, z1)),  # control panel
+    ]
+    if b.foot_height > 0:
+        s, inset = b.foot_side, 0.03
+        for fx in ((x0 + inset, x0 + inset + s), (x1 - inset - s, x1 - inset)):
+            for fy in ((y0 + inset, y0 + inset + s), (y1 - inset - s, y1 - inset)):
+                body.append(Box(fx, fy, (0.0, z0)))
+    face = x0 - b.door_thickness
+    proud = (face - b.relief, face)
+    centre, hb = y1 - panel / 2, z1 - z0
+    if b.display:
+        body.append(
+            Box(
+                proud,
+                (centre - 0.35 * panel, centre + 0.35 * panel),
+                (z1 - 0.2 * hb, z1 - 0.08 * hb),
+            )
+        )
+    if b.button_rows:
+        side = min(0.16 * panel, 0.5 * (0.45 * hb) / b.button_rows)
+        pitch_y, pitch_z = 0.27 * panel, 0.45 * hb / b.button_rows
+        top = z1 - 0.28 * hb
+        for r in range(b.button_rows):
+            zc = top - (r + 0.5) * pitch_z
+            for k in (-1, 0, 1):
+                yc = centre + k * pitch_y
+                body.append(
+                    Box(proud, (yc - side / 2, yc + side / 2), (zc - side / 2, zc + side / 2))
+                )
+        start = (centre - 0.35 * panel, centre + 0.35 * panel)
+        body.append(Box(proud, start, (z0 + 0.06 * hb, z0 + 0.14 * hb)))  # door-open button
+    width, boxes = _microwave_door(spec, b)
+    door = _Door((x0, y0, z0 + b.door_margin), width, hb - 2 * b.door_margin, boxes, None)
+    return _assemble(spec, body, door)
+
+
+def _cabinet_handle(b: CabinetBuild, width: float, height: float) -> TriangleMesh:
+    """The handle in its own frame (on the door's face, sticking out towards -x)."""
+    if b.handle == "knob_round":
+        import trimesh
+
+        along_x = make_transform(
+            rotation=np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]),
+            translation=np.array([-0.0125, 0.0, 0.0]),
+        )
+        shape = trimesh.creation.cylinder(
+            radius=b.handle_size / 2, height=0.025, sections=16, transform=along_x
+        )
+        return TriangleMesh(
+            np.asarray(shape.vertices, dtype=np.float64), np.asarray(shape.faces, dtype=np.int32)
+        )
+    half = b.handle_size / 2
+    if b.handle == "knob_box":
+        return union_mesh([Box((-0.025, 0.0), (-half, half), (-half, half))])
+    length = min(b.handle_size, 0.6 * height)
+    bar, standoff = 0.012, 0.03
+    ends = (-length / 2, length / 2)
+    return union_mesh(
+        [
+            Box((-standoff - bar, -standoff), (-bar / 2, bar / 2), ends),
+            Box((-standoff, 0.0), (-bar / 2, bar / 2), (ends[0], ends[0] + bar)),
+            Box((-standoff, 0.0), (-bar / 2, bar / 2), (ends[1] - bar, ends[1])),
+        ]
+    )
+
+
+def build_cabinet(spec: BenchSpec) -> ArticulatedObject:
+    """A cabinet: plinth, legs or neither, a carcass with shelves, a top slab with
+    overhang, an overlay door with gaps, a knob or bar handle at the free edge."""
+    b = spec.build
+    assert isinstance(b, CabinetBuild)
+    d, w, t = spec.depth, spec.width, b.wall
+    x0, x1, y0, y1 = -d / 2, d / 2, -w / 2, w / 2
+    z0, z1 = b.support_height, spec.height - b.top  # carcass
+    inner_x, inner_y = (x0, x1 - t), (y0 + t, y1 - t)
+    body = [
+        Box((x1 - t, x1), (y0, y1), (z0, z1)),
+        Box(inner_x, (y0, y0 + t), (z0, z1)),
+        Box(inner_x, (y1 - t, y1), (z0, z1)),
+        Box(inner_x, inner_y, (z0, z0 + t)),
+        Box(inner_x, inner_y, (z1 - t, z1)),
+    ]
+    for k in range(b.shelves):
+        z = z0 + t + (k + 1) * (z1 - z0 - 2 * t) / (b.shelves + 1)
+        body.append(Box((x0 + 0.02, x1 - t), inner_y, (z - t / 2, z + t / 2)))
+    if b.top > 0:
+        body.append(
+            Box((x0 - b.overhang, x1), (y0 - b.overhang, y1 + b.overhang), (z1, spec.height))
+        )
+    if b.support == "plinth":
+        body.append(Box((x0 + b.support_inset, x1 - 0.01), (y0 + 0.01, y1 - 0.01), (0.0, z0)))
+    elif b.support == "legs":
+        s, inset = b.support_inset, 0.02
+        for lx in ((x0 + inset, x0 + inset + s), (x1 - inset - s, x1 - inset)):
+            for ly in ((y0 + inset, y0 + inset + s), (y1 - inset - s, y1 - inset)):
+                body.append(Box(lx, ly, (0.0, z0)))
+    g, th = b.gap, b.door_thickness
+    width, height = w - 2 * g, (z1 - z0) - 2 * g
+    face, full = (-th, 0.0), (0.0, height)
+    if b.panelled:
+        f = min(b.frame, width / 4, height / 4)
+        mid = (f, width - f)
+        boxes = [
+            Box(face, (0.0, f), full),
+            Box(face, (width - f, width), full),
+            Box(face, mid, (0.0, f)),
+            Box(face, mid, (height - f, height)),
+            Box((-th + b.recess, 0.0), mid, (f, height - f)),
+        ]
+    else:
+        boxes = [Box(face, (0.0, width), full)]
+    handle = None
+    if b.handle != "none":
+        hz = 0.5 * height if height > 1.0 else 0.8 * height
+        mount = (-th, width - min(b.handle_inset, width / 4), hz)
+        handle = (_cabinet_handle(b, width, height), mount)
+    door = _Door((x0, y0 + g, z0 + g), width, height, boxes, handle)
+    return _assemble(spec, body, door)
+
+
+def build(spec: BenchSpec) -> ArticulatedObject:
+    """The object `spec` describes (pure, deterministic)."""
+    return build_microwave(spec) if spec.category == "microwave" else build_cabinet(spec)
+
+
+# ---------------------------------------------------------------------------- the scene
+
+
+def _corners(obj: ArticulatedObject, q: float) -> NDArray[np.float64]:
+    """(8, 3) corners of the axis-aligned box round every link at `q`, in the frame of
+    the object's base pose without its translation (camera axes)."""
+    base = make_transform(rotation=obj.base_pose[:3, :3])
+    at = dataclasses.replace(obj, base_pose=base)
+    points = np.concatenate(
+        [
+            transform_points(pose, link.mesh.vertices)
+            for link, pose in zip(at.links, at.link_poses(np.array([q])), strict=True)
+        ]
+    )
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    return np.array(
+        [[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1]) for c in (lo[2], hi[2])]
+    )
+
+
+def _window(corners: NDArray[np.float64], x: float, axis: int) -> tuple[float, float]:
+    """The offsets along `axis` (1: y, 2: z) that keep every corner, moved by x along
+    the optical axis, `MARGIN_PX` inside the image: u = cx - fx y / x in [m, W - 1 - m]."""
+    depth = corners[:, 0] + x
+    f, c, size = (CAMERA.fx, CAMERA.cx, CAMERA.width) if axis == 1 else (
+        CAMERA.fy, CAMERA.cy, CAMERA.height)  # fmt: skip
+    low = (c - (size - 1 - MARGIN_PX)) / f * depth - corners[:, axis]
+    high = (c - MARGIN_PX) / f * depth - corners[:, axis]
+    return float(low.max()), float(high.min())
+
+
+def _fits(corners: NDArray[np.float64], x: float) -> bool:
+    if float((corners[:, 0] + x).min()) < MIN_DEPTH:
+        return False
+    return all(lo <= hi for lo, hi in (_window(corners, x, 1), _window(corners, x, 2)))
+
+
+def nearest_distance(corners: NDArray[np.float64]) -> float:
+    """The smallest x (mm resolution) at which the box `corners` fits the image."""
+    lo, hi = MIN_DEPTH - float(corners[:, 0].min()), 50.0
+    if not _fits(corners, hi):
+        raise ValueError("object too large for the camera")
+    while hi - lo > 1e-4:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if _fits(corners, mid) else (mid, hi)
+    return hi
+
+
+def place(
+    spec: BenchSpec, rng: np.random.Generator, builder: Builder = "bench"
+) -> tuple[BenchSpec, ArticulatedObject]:
+    """The object positioned: x uniform from `nearest_distance` to `DISTANCE_SPAN` beyond,
+    then y and z uniform over the offsets that keep it `MARGIN_PX` inside the image.
+    builder "artic": artic's own builder of the same numbers (`label_spec`), the control."""
+    if builder == "artic":
+        from artic.objects.categories import build as build_artic
+
+        obj = build_artic(spec.label_spec())
+    else:
+        obj = build(spec)
+    corners = _corners(obj, spec.configuration)
+    x = _u(rng, (near := nearest_distance(corners)), near + DISTANCE_SPAN)
+    y, z = (_u(rng, *_window(corners, x, axis)) for axis in (1, 2))
+    pose = Pose(x=x, y=y, z=z, yaw=spec.pose.yaw)
+    placed = spec.model_copy(update={"pose": pose})
+    return placed, dataclasses.replace(obj, base_pose=pose.matrix())
+
+
+def chirality_of(index: int, sides: Sides) -> Literal[-1, 1]:
+    """right = +1 (hinge on the camera's right), left = -1, both: +1 for even i."""
+    if sides == "both":
+        return 1 if index % 2 == 0 else -1
+    return 1 if sides == "right" else -1
+
+
+def make_object(
+    category: Category,
+    sizes: Sizes,
+    sides: Sides,
+    seed: int,
+    index: int,
+    builder: Builder = "bench",
+) -> tuple[BenchSpec, ArticulatedObject]:
+    """Object `index` of the bench: drawn from `default_rng([seed, index, STREAM])`;
+    built by this file (`builder` "bench") or by artic's builder (`place`)."""
+    rng = np.random.default_rng([seed, index, STREAM])
+    chirality = chirality_of(index, sides)
+    if category == "microwave":
+        spec = sample_microwave(rng, index, chirality)
+    else:
+        spec = sample_cabinet(rng, index, chirality, sizes)
+    return place(spec, rng, builder)
+
+
+class Image(NamedTuple):
+    """One rendered image: depth (H, W) uint16 millimetres (sensor noise applied) and
+    its labels (`label_columns(1)` order)."""
+
+    depth_mm: NDArray[np.uint16]
+    labels: dict[str, float]
+
+
+def render(spec: BenchSpec, obj: ArticulatedObject, seed: int, backend: Any) -> Image:
+    """Ray cast `obj` at its configuration with `backend` (CAMERA), add `NOISE` drawn
+    from `default_rng([seed, index, STREAM, 1])`, and label it (artic's `image_labels`)."""
+    from artic.objects.labels import image_labels
+    from artic.render.noise import apply_sensor_noise, depth_to_uint16_mm
+
+    q = np.array([[spec.configuration]])
+    clean = backend.render_many(obj, q)[0].depth
+    rng = np.random.default_rng([seed, spec.index, STREAM, 1])
+    noisy = apply_sensor_noise(clean, NOISE, rng, CAMERA.fx)
+    return Image(depth_to_uint16_mm(noisy), image_labels(spec.label_spec(), obj, q[0]))
+
+
+# ---------------------------------------------------------------------------- scoring
+
+
+class Score(NamedTuple):
+    """One image's errors (errors.csv)."""
+
+    chirality_estimate: int
+    axis_position_cm: float
+    yaw_deg: float
+    configuration_deg: float
+    hinge_side_right: bool
+    warned: bool
+    warnings: list[str]
+
+
+def score(result: dict[str, Any], labels: dict[str, float]) -> Score:
+    """Errors of `predict_image`'s `result` against the true `labels`, as
+    `kinematic_errors` defines them (on the columns both have)."""
+    from artic.evaluation.kinematics import kinematic_errors
+    from artic.objects.labels import label_columns
+
+    columns = label_columns(1)
+    pred = np.array([[float(result["estimate"][c]) for c in columns]])
+    true = np.array([[labels[c] for c in columns]])
+    errors = kinematic_errors(pred, true, columns, 1, "revolute")
+    side = int(result["geometry"]["chirality"])
+    warnings = [str(w) for w in result["warnings"]]
+    return Score(
+        chirality_estimate=side,
+        axis_position_cm=float(errors["position_cm"][0]),
+        yaw_deg=float(errors["rotation_deg"][0]),
+        configuration_deg=float(errors["configuration"][0]),
+        hinge_side_right=side == int(labels["chirality"]),
+        warned=any(w.startswith(ESTIMATE_WARNINGS) for w in warnings),
+        warnings=warnings,
+    )
+
+
+def model_file(model: Path, category: str) -> Path:
+    """`--model`: a folder's model.pt or a file, loadable as an MDN of `category`."""
+    from artic.kinematics.predict import Predictor
+
+    path = model / "model.pt" if model.is_dir() else model
+    if not path.is_file():
+        raise InputError(f"--model {model}: no such file (expected a model.pt or its folder)")
+    Predictor.load(path, category)  # InputError naming the file if it is not one
+    return path
+
+
+def withheld_median(report: Path, category: str) -> float:
+    """The median axis-position error (cm) of the network ("Ours") in an `artic evaluate
+    mdn` output folder's errors.csv (of `category`, when its manifest.json says)."""
+    from artic.artifacts.formats import read_csv, read_json
+
+    manifest = report / "manifest.json"
+    if manifest.is_file():
+        config = read_json(manifest).get("config", {})
+        name = (config.get("category") or {}).get("name", category)
+        if name != category:
+            raise InputError(f"--report {report}: an evaluation of {name}, not {category}")
+    path = report / "errors.csv"
+    if not path.is_file():
+        raise InputError(f"--report {report}: no errors.csv (an artic evaluate mdn folder?)")
+    rows = read_csv(path)
+    if not rows or "method" not in rows[0] or "position_cm" not in rows[0]:
+        raise InputError(f"{path}: expected the columns method and position_cm")
+    method, position = rows[0].index("method"), rows[0].index("position_cm")
+    ours = [float(r[position]) for r in rows[1:] if r[method] == "Ours"]
+    if not ours:
+        raise InputError(f"{path}: no row of method Ours")
+    return float(np.median(ours))
+
+
+def summary_rows(
+    category: str, sizes: str, errors: list[tuple[str, Score]], withheld: float | None
+) -> list[list[Any]]:
+    """summary.csv: one row per side present ("right", "left"), then "both" when both
+    are. Medians over the images; percentages 0-100; ratio = median / withheld."""
+    groups: list[tuple[str, list[Score]]] = [
+        (s, [e for side, e in errors if side == s]) for s in ("right", "left")
+    ]
+    groups = [(s, g) for s, g in groups if g]
+    if len(groups) == 2:
+        groups.append(("both", [e for _, e in errors]))
+    rows = []
+    for name, group in groups:
+        median = float(np.median([e.axis_position_cm for e in group]))
+        rows.append(
+            [
+                category,
+                name,
+                sizes,
+                len(group),
+                round(median, 3),
+                round(float(np.median([e.yaw_deg for e in group])), 3),
+                round(float(np.median([e.configuration_deg for e in group])), 3),
+                round(100.0 * float(np.mean([e.hinge_side_right for e in group])), 1),
+                round(100.0 * float(np.mean([e.warned for e in group])), 1),
+                "" if withheld is None else round(withheld, 3),
+                "" if withheld is None else round(median / withheld, 3),
+            ]
+        )
+    return rows
+
+
+# ---------------------------------------------------------------------------- the run
+
+
+def run(
+    category: str,
+    objects: int,
+    seed: int,
+    model: Path,
+    out: Path,
+    report: Path | None = None,
+    sides: str = "both",
+    sizes: str = "table_a1",
+    builder: str = "bench",
+) -> list[list[Any]]:
+    """Generate, render, write, predict and score (module docstring); the summary rows.
+    Everything is checked before `out` is created; InputError on bad input."""
+    from PIL import Image as PILImage
+
+    from artic.artifacts.formats import write_csv, write_json
+    from artic.kinematics.predict import predict_image
+    from artic.objects.labels import label_columns
+    from artic.render.backend import make_backend
+
+    if category not in CATEGORIES:
+        raise InputError(f"--category: {category!r}; expected one of {', '.join(CATEGORIES)}")
+    if objects < 1:
+        raise InputError(f"--objects: expected >= 1, got {objects}")
+    if seed < 0:
+        raise InputError(f"--seed: expected >= 0, got {seed}")
+    if sides not in ("both", "left", "right"):
+        raise InputError(f"--sides: {sides!r}; expected both, left or right")
+    if sizes not in CABINET_SIZES:
+        raise InputError(f"--sizes: {sizes!r}; expected table_a1 or generator")
+    if builder not in ("bench", "artic"):
+        raise InputError(f"--builder: {builder!r}; expected bench or artic")
+    path = model_file(model, category)
+    withheld = withheld_median(report, category) if report is not None else None
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise InputError(f"--out: {out} exists and is not an empty folder")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        (tmp / "images").mkdir()
+        camera = {**CAMERA.model_dump(), "frame_id": FRAME_ID}
+        write_json(tmp / "camera.json", camera)
+        columns = label_columns(1)
+        label_rows, error_rows, specs = [], [], []
+        scored: list[tuple[str, Score]] = []
+        with make_backend("raycast", CAMERA) as backend:
+            for i in range(objects):
+                spec, obj = make_object(category, sizes, sides, seed, i, builder)  # type: ignore[arg-type]
+                image = render(spec, obj, seed, backend)
+                png = tmp / "images" / f"{i:06d}.png"
+                PILImage.fromarray(image.depth_mm).save(png, format="PNG")
+                side = "right" if spec.chirality == 1 else "left"
+                label_rows.append([i, i, side, *(image.labels[c] for c in columns)])
+                specs.append(spec.model_dump_json())
+                result = predict_image(
+                    png, category, str(tmp / "camera.json"), path, None, 0, ESTIMATOR, seed,
+                    time.perf_counter(),
+                )  # fmt: skip
+                result["warnings"] = [w.replace(str(tmp), str(out)) for w in result["warnings"]]
+                s = score(result, image.labels)
+                scored.append((side, s))
+                error_rows.append([
+                    i, i, side, spec.chirality, s.chirality_estimate, s.axis_position_cm,
+                    s.yaw_deg, s.configuration_deg, int(s.hinge_side_right), int(s.warned),
+                    " | ".join(s.warnings),
+                ])  # fmt: skip
+        write_csv(tmp / "labels.csv", ["image", "object_id", "side", *columns], label_rows)
+        (tmp / "objects.jsonl").write_text("".join(f"{s}\n" for s in specs))
+        write_csv(tmp / "errors.csv", ERROR_COLUMNS, error_rows)
+        rows = summary_rows(category, sizes, scored, withheld)
+        write_csv(tmp / "summary.csv", SUMMARY_COLUMNS, rows)
+        if out.exists():
+            out.rmdir()  # empty (checked above)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return rows
+
+
+def _table(rows: list[list[Any]]) -> str:
+    """The summary as an aligned text table."""
+    header = ["sides", "images", "axis cm", "yaw deg", "config deg", "side ok %", "warned %",
+              "withheld cm", "ratio"]  # fmt: skip
+    body = [[str(v) for v in (r[1], *r[3:])] for r in rows]
+    widths = [max(len(x) for x in col) for col in zip(header, *body, strict=True)]
+    return "\n".join(
+        "  ".join(x.rjust(w) for x, w in zip(line, widths, strict=True)) for line in [header, *body]
+    )
+
+
+def _one_line_error(message: str) -> NoReturn:
+    """argparse's error without the usage lines: one line, exit 2."""
+    print(f"error: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
+def main(argv: Sequence[str]) -> int:
+    parser = argparse.ArgumentParser(
+        prog="independent_mdn_objects.py",
+        description="Microwaves and cabinets from a second generator, predicted through "
+        "artic predict's code path and scored (errors.csv, summary.csv).",
+    )
+    parser.add_argument("--category", required=True, help=", ".join(CATEGORIES))
+    parser.add_argument("--objects", type=int, required=True, help="objects (one image each)")
+    parser.add_argument("--seed", type=int, default=0, help="object i from (seed, i)")
+    parser.add_argument("--model", type=Path, required=True, help="train-mdn folder or model.pt")
+    parser.add_argument("--report", type=Path, help="artic evaluate mdn folder of the model")
+    parser.add_argument("--out", type=Path, required=True, help="output folder (new or empty)")
+    parser.add_argument("--sides", default="both", help="both | left | right")
+    parser.add_argument("--sizes", default="table_a1", help="table_a1 | generator")
+    parser.add_argument(
+        "--builder", default="bench", help="bench (this file's objects) | artic (the control)"
+    )
+    parser.error = _one_line_error  # type: ignore[method-assign]
+    args = parser.parse_args(argv)
+    logging.getLogger("artic").setLevel(logging.ERROR)  # predict's warnings: in errors.csv
+    try:
+        rows = run(
+            args.category, args.objects, args.seed, args.model, args.out, args.report,
+            args.sides, args.sizes, args.builder,
+        )  # fmt: skip
+    except InputError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    what = "artic's builder (control)" if args.builder == "artic" else "this generator"
+    print(f"{args.category} ({args.sizes} sizes, {what}), {args.objects} objects -> {args.out}")
+    print(_table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
