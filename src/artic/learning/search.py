@@ -5,7 +5,9 @@ Algorithms (`algorithm`, `auto` picks the thesis' choice for the task):
 - `pi2cma` (drawer, t-ball): DMP policies (one per joint, `artic.policies.dmp`) tracked
   by a joint-velocity controller with feedback (`artic.control.tracking`); PI^2-CMA
   (`artic.learning.pi2_cma`) searches their weights, goals and duration tau. The initial
-  DMP is fit-dmp's (`init=bootstrap`) or a random one (`random_dmp`).
+  DMP is fit-dmp's (`init=bootstrap`) or a random one (`random_dmp`): `baseline=exploring`
+  towards a random reachable tool goal near the object, or `baseline=centred` around
+  keeping still.
 - `dapg` (microwave): a Gaussian MLP policy (hidden (32, 32), tanh), cloned from the
   demos (`init=bootstrap`, then DAPG with those demos) or PyTorch's default
   initialisation with the output layer scaled by 0.01 (`init=random`, plain NPG).
@@ -25,7 +27,7 @@ import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -42,6 +44,7 @@ if TYPE_CHECKING:
     from artic.learning.rollout import ActionFn
     from artic.policies.dmp import DMPFile, DMPParams
     from artic.policies.gaussian_mlp import GaussianMLPPolicy
+    from artic.sim.world import TaskWorld
 
 log = logging.getLogger("artic")
 
@@ -50,6 +53,7 @@ TIMING = "timings.csv"
 CURVE_COLUMNS = ["seed", "update", "rollouts", "mean_return", "normalised_return",
                  "success_rate", "train_return"]  # fmt: skip
 N_JOINTS = 7
+Extent3 = Annotated[list[Annotated[float, Field(ge=0)]], Field(min_length=3, max_length=3)]
 Rows = list[list[Any]]
 Checkpoint = dict[str, Any]
 
@@ -62,8 +66,21 @@ class DMPPolicyConfig(Strict):
     sigma_goal: float = Field(0.05, gt=0, description="initial exploration std of goals, rad")
     sigma_tau: float = Field(0.1, gt=0, description="initial exploration std of tau, s")
     tau_min: float = Field(0.2, gt=0, description="tau of samples clipped to at least this, s")
-    random_weight_std: float = Field(20.0, ge=0, description="std of random-init weights")
+    random_weight_std: float = Field(
+        20.0, ge=0, description="std of random-init weights, baseline=centred"
+    )
     random_tau: float | None = Field(None, gt=0, description="random-init tau (null: episode)")
+    explore_weight_std: float = Field(
+        150.0, ge=0, description="std of random-init weights, baseline=exploring"
+    )
+    explore_half_extent: Extent3 = Field(
+        default_factory=lambda: [0.1, 0.15, 0.1],
+        description="baseline=exploring: half extents (x, y, z) of the world box around the "
+        "object's target point (handle, ball) the tool goal is drawn from, m",
+    )
+    explore_ik_attempts: int = Field(
+        50, gt=0, description="baseline=exploring: tool goals drawn until IK reaches one"
+    )
     basis: DMPConfig = Field(default_factory=DMPConfig, description="random-init DMP basis")
     pi2cma: PI2CMAConfig = Field(
         default_factory=PI2CMAConfig, description="PI^2-CMA; n_samples is `rollouts`"
@@ -84,6 +101,11 @@ class PolicySearchConfig(StageConfig):
 
     task: TaskConfig
     init: Literal["bootstrap", "random"] = Field("bootstrap", description="initial policy")
+    baseline: Literal["exploring", "centred"] = Field(
+        "exploring",
+        description="init=random with pi2cma: exploring (a DMP to a random reachable tool goal "
+        "near the object) | centred (a DMP around keeping still)",
+    )
     algorithm: Literal["auto", "pi2cma", "dapg"] = Field(
         "auto", description="auto: dapg for microwave, pi2cma otherwise (Figure 5.2)"
     )
@@ -169,17 +191,68 @@ class Evaluator:
 
 
 def random_dmp(cfg: PolicySearchConfig, seed: int) -> DMPParams:
-    """The random initial DMP: y0 = goal = the task's robot start configuration, tau =
-    `random_tau` (null: the episode duration), forcing weights i.i.d. N(0,
-    `random_weight_std`^2) drawn from (seed, 4)."""
+    """The random initial DMP of run seed `seed` (`cfg.baseline`), drawn from (seed, 4):
+    y0 = the task's robot start configuration, tau = `random_tau` (null: the episode
+    duration), and
+    - centred: goal = y0, forcing weights i.i.d. N(0, `random_weight_std`^2): a sample
+      of the search distribution around the do-nothing DMP;
+    - exploring: goal = a joint configuration putting the tool at a random point near the
+      object (`exploring_goal`), forcing weights i.i.d. N(0, `explore_weight_std`^2), on
+      the scale of the weights fitted to planned demos."""
     from artic.policies.dmp import DMPParams
 
     p = cfg.pi2cma_policy
     rng = np.random.default_rng([seed, 4])
     start = np.array(cfg.task.robot.start_q, dtype=np.float64)
-    weights = rng.normal(0.0, p.random_weight_std, (N_JOINTS, p.basis.n_basis))
     tau = p.random_tau or cfg.task.horizon * cfg.task.control_dt
-    return DMPParams(weights, start, start.copy(), tau)
+    if cfg.baseline == "centred":
+        weights = rng.normal(0.0, p.random_weight_std, (N_JOINTS, p.basis.n_basis))
+        return DMPParams(weights, start, start.copy(), tau)
+    from artic.sim.world import TaskWorld
+
+    with TaskWorld.create(cfg.task) as world:
+        goal = exploring_goal(world, p, rng)
+    weights = rng.normal(0.0, p.explore_weight_std, (N_JOINTS, p.basis.n_basis))
+    return DMPParams(weights, start, goal, tau)
+
+
+def target_point(world: TaskWorld) -> np.ndarray:
+    """(3,) world position of the object's target point at the task's start: the handle's
+    grasp point, or the t-ball's ball centre, m."""
+    model = world.kinematic_model()
+    pose = model.link_poses(np.asarray(world.cfg.object_start))[world.grasp_target_link]
+    return np.asarray(pose @ np.append(world.grasp_point, 1.0), dtype=np.float64)[:3]
+
+
+def approach_pose(position: np.ndarray) -> np.ndarray:
+    """(4, 4) tool pose at `position` (3,) whose approach axis (tool +z) points away from
+    the robot's base axis, level, and whose x axis lies in the vertical plane through it."""
+    d = np.array([position[0], position[1], 0.0])
+    d = d / np.linalg.norm(d) if np.linalg.norm(d) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    y = np.cross(d, [0.0, 0.0, 1.0])
+    pose = np.eye(4)
+    pose[:3, :3] = np.stack([np.cross(y, d), y, d], axis=1)
+    pose[:3, 3] = position
+    return pose
+
+
+def exploring_goal(world: TaskWorld, p: DMPPolicyConfig, rng: np.random.Generator) -> np.ndarray:
+    """(7,) joint goal of the exploring baseline: a tool point drawn uniformly from the
+    box of half extents `explore_half_extent` around the object's target point
+    (`target_point`), the tool approaching it level and away from the robot
+    (`approach_pose`), turned into joints by the world's IK from the start configuration
+    (`artic.sim.robot.solve_ik`); a point IK cannot reach is redrawn, up to
+    `explore_ik_attempts` times, then the goal is the start configuration (logged)."""
+    centre = target_point(world)
+    start = np.asarray(world.cfg.robot.start_q, dtype=np.float64)
+    half = np.asarray(p.explore_half_extent, dtype=np.float64)
+    for _ in range(p.explore_ik_attempts):
+        point = centre + rng.uniform(-half, half)
+        goal = world.ik(approach_pose(point), start)
+        if goal is not None:
+            return goal
+    log.warning("exploring baseline: no reachable tool goal near %s; goal = start", centre)
+    return start.copy()
 
 
 def pi2cma_search(cfg: PolicySearchConfig, index: int, env: Any, params: DMPParams,

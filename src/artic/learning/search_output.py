@@ -152,7 +152,7 @@ def run_summary(
         "normalised_return": "1 - R / R_idle; R: return of the mean policy from fixed starts, "
         "R_idle: return of a robot that keeps still from the same starts",
         "random_init": (
-            "DMP: y0 = goal = robot start, weights ~ N(0, random_weight_std^2)"
+            _random_dmp_description(cfg)
             if dmp
             else "MLP: PyTorch default init, output layer x0.01 (mean action ~ 0)"
         ),
@@ -170,6 +170,18 @@ def run_summary(
         "final success rate": round(float(last[:, 5].mean()), 3),
         "s per update": round(float(seconds.mean()), 3) if len(seconds) else 0.0,
     }
+
+
+def _random_dmp_description(cfg: PolicySearchConfig) -> str:
+    """How `artic.learning.search.random_dmp` draws the random DMP of `cfg.baseline`."""
+    if cfg.baseline == "centred":
+        return (
+            "DMP (baseline centred): y0 = goal = robot start, weights ~ N(0, random_weight_std^2)"
+        )
+    return (
+        "DMP (baseline exploring): y0 = robot start, goal = IK of a tool point uniform in "
+        "explore_half_extent around the handle / ball, weights ~ N(0, explore_weight_std^2)"
+    )
 
 
 def _mean_sem(x: np.ndarray) -> dict[str, float]:
