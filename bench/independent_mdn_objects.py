@@ -1000,7 +1000,9 @@ def main(argv: Sequence[str]) -> int:
     )
     parser.error = _one_line_error  # type: ignore[method-assign]
     args = parser.parse_args(argv)
-    logging.getLogger("artic").setLevel(logging.ERROR)  # predict's warnings: in errors.csv
+    logger = logging.getLogger("artic")
+    level = logger.level
+    logger.setLevel(logging.ERROR)  # predict's warnings: in errors.csv
     try:
         rows = run(
             args.category, args.objects, args.seed, args.model, args.out, args.report,
@@ -1009,6 +1011,8 @@ def main(argv: Sequence[str]) -> int:
     except InputError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    finally:
+        logger.setLevel(level)  # callers in the same process (the tests) keep theirs
     what = "artic's builder (control)" if args.builder == "artic" else "this generator"
     print(f"{args.category} ({args.sizes} sizes, {what}), {args.objects} objects -> {args.out}")
     print(_table(rows))

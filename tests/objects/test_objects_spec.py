@@ -15,15 +15,16 @@ from artic.objects.spec import CategoryConfig, ObjectSpec, PoseRanges, sample_po
 
 CATEGORY_NAMES = ("cabinet", "drawer", "microwave", "toaster", "cabinet2", "refrigerator")
 
-# Thesis Appendix A. Table A.1: depth, width, height in cm, except the cabinets: half of
-# Table A.1, the sizes the thesis' generator draws (docs/objects.md). Table A.2: x, y, z
-# in m, configuration in rad (cm for the drawer); yaw is [-pi/4, pi/4] for all.
+# Thesis Appendix A. Table A.1: depth, width, height in cm, except the cabinets: from the
+# thesis generator's half sizes (28-32 x 30-70 x 30-70, category=thesis/cabinet) up to
+# Table A.1's (56-64 x 60-140 x 60-140; docs/objects.md). Table A.2: x, y, z in m,
+# configuration in rad (cm for the drawer); yaw is [-pi/4, pi/4] for all.
 TABLE_A1 = {
-    "cabinet": ((28, 32), (30, 70), (30, 70)),
+    "cabinet": ((28, 64), (30, 140), (30, 140)),
     "drawer": ((45, 60), (30, 76), (10, 30)),
     "microwave": ((25, 56), (40, 76), (22, 45)),
     "toaster": ((20, 50), (40, 60), (20, 50)),
-    "cabinet2": ((28, 32), (30, 70), (30, 70)),
+    "cabinet2": ((28, 64), (30, 140), (30, 140)),
     "refrigerator": ((60, 80), (60, 90), (82, 88)),
 }
 _HALF_PI = (0.0, math.pi / 2)
