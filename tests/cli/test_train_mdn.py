@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import shutil
 from pathlib import Path
@@ -120,7 +122,7 @@ def test_predict_reprojects_another_camera_and_max_point(tiny_model, image, tmp_
     code, out, err = run_cli(
         "predict", str(tmp_path / "big.npy"), "--category", "microwave", "--camera",
         str(tmp_path / "cam2.json"), "--model", str(tiny_model / "model.pt"),
-        "--estimator", "max-point",
+        "--estimator", "max-point", "--no-refine",
     )  # fmt: skip
     assert code == 0, err
     result = json.loads(out)
@@ -131,9 +133,9 @@ def test_predict_reprojects_another_camera_and_max_point(tiny_model, image, tmp_
 
 def test_predict_estimators_are_the_mixture_points_they_name(tiny_model, image):
     _, npy, camera = image
-    base = [
+    base = [  # the network's estimators themselves: without the geometric refinement
         "predict", str(npy), "--category", "microwave", "--camera", str(camera),
-        "--model", str(tiny_model / "model.pt"),
+        "--model", str(tiny_model / "model.pt"), "--no-refine",
     ]  # fmt: skip
     results = {}
     for estimator in ("most-likely", "densest"):
@@ -201,21 +203,33 @@ def test_evaluate_mdn_writes_table_3_1_and_calibration(tiny_model, tiny_depth, t
     )  # fmt: skip
     assert code == 0, err
     report = (out / "report.md").read_text()
-    for method in ("Mean", "NN", "ICP", "Ours", "Ours (densest)"):
+    for method in ("Mean", "NN", "ICP", "Ours", "Ours (densest)", "Ours + refinement"):
         assert f"| {method} |" in report
     assert "| 90% |" in report
+    assert "kept the network's estimate (fallback) on" in report
     summary = (out / "summary.csv").read_text().splitlines()
     assert summary[0].startswith("method,images,position_cm_mean")
     assert "rotation_thesis_deg_mean,rotation_thesis_deg_std" in summary[0]
     assert summary[0].endswith("hinge_side_wrong_pct_mean,hinge_side_wrong_pct_std")
     assert "Rot. (thesis' metric, deg)" in report
-    assert len(summary) == 6
+    assert len(summary) == 7
     mean_row = dict(zip(summary[0].split(","), summary[1].split(","), strict=True))
     assert float(mean_row["position_cm_mean"]) > 0
     calibration = (out / "calibration.csv").read_text().splitlines()
     assert calibration[0].startswith("nominal,") and len(calibration) == 20
     for name in ("errors.png", "calibration.png", "examples.png", "errors.csv"):
         assert (out / name).stat().st_size > 0
+    # the refined row: every test image (refine_images 500 > the tiny test set), each
+    # with a status and a returned residual never above the network's
+    refined = (out / "refinement.csv").read_text()
+    assert refined.startswith("image,object_id,status,residual_network_m,residual_refined_m\n")
+    rows = list(csv.DictReader(io.StringIO(refined)))
+    last = next(csv.DictReader(io.StringIO("\n".join([summary[0], summary[-1]]))))
+    assert last["method"] == "Ours + refinement" and len(rows) == int(last["images"])
+    for row in rows:
+        assert row["status"].startswith(("refined", "fallback", "not refined"))
+        if row["residual_network_m"] != "nan":
+            assert float(row["residual_refined_m"]) <= float(row["residual_network_m"])
 
 
 def test_evaluate_mdn_reads_the_objects_as_a_hashed_input(

@@ -1,10 +1,9 @@
 """`artic evaluate mdn`: Table 3.1 for one category on its withheld objects.
 
-Writes `report.md` (the Table 3.1 row block: Mean, NN, ICP, Ours with mean and standard
-deviation of each error, and Ours with the `densest` estimator; the calibration of the
-MDN's intervals), `summary.csv`, `errors.csv` (per image and method), `calibration.csv`,
-and plots: `errors.png` (histograms), `calibration.png` (empirical against nominal
-coverage), `examples.png` (true axes green, predicted red).
+Writes `report.md` (Table 3.1's rows: Mean, NN, ICP, Ours, Ours (densest), Ours +
+refinement: kinematics/evaluate.py; the MDN's calibration), `summary.csv`, `errors.csv`
+(per image and method), `refinement.csv`, `calibration.csv`, and plots: `errors.png`,
+`calibration.png`, `examples.png` (true axes green, predicted red).
 """
 
 from __future__ import annotations
@@ -28,7 +27,7 @@ if TYPE_CHECKING:
     from artic.kinematics.evaluate import Evaluation
     from artic.kinematics.predict import Predictor
 
-METHODS = ("Mean", "NN", "ICP", "Ours", "Ours (densest)")
+METHODS = ("Mean", "NN", "ICP", "Ours", "Ours (densest)", "Ours + refinement")
 MODEL = "model.pt"
 
 
@@ -72,7 +71,7 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
     icp = IcpBaseline(template, train.labels, predictor.camera)
     result = evaluate(
         predictor, train, test, icp, cfg.evaluate.icp_images, cfg.evaluate.batch_size,
-        cfg.evaluate.levels,
+        cfg.evaluate.levels, cfg.evaluate.refine_images if cfg.evaluate.refine else 0,
     )  # fmt: skip
     _write(tmp, cfg, predictor, test, result)
     return 1
@@ -109,7 +108,8 @@ def _write(
     report = table.table_3_1_report(
         cfg.category.name, rows, result.coverage, groups, cfg.evaluate.levels, unit, len(test)
     )
-    (tmp / "report.md").write_text(report)
+    write_csv(tmp / "refinement.csv", *result.refinement_table(test.object_id))
+    (tmp / "report.md").write_text(report + result.refinement_note())
 
 
 def _finalize(

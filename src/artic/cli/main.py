@@ -158,6 +158,7 @@ def predict(
         "shipped model; see artic models)",
     ),
     seed: int = typer.Option(0, "--seed", help="seed of the samples"),
+    refine: bool = typer.Option(True, "--refine/--no-refine", help="geometric refinement"),
 ) -> None:
     """Kinematic model, configuration and geometry from one depth image, as JSON.
 
@@ -169,7 +170,8 @@ def predict(
     started = time.perf_counter()
     from artic.kinematics.predict import predict_image
 
-    result = predict_image(image, category, camera, model, mask, samples, estimator, seed, started)
+    result = predict_image(image, category, camera, model, mask, samples, estimator, seed,
+                           started, refine)  # fmt: skip
     typer.echo(json.dumps(result, indent=2))
 
 

@@ -53,6 +53,10 @@ class MdnEvaluateConfig(Strict):
         (0.5, 0.9, 0.95), min_length=1, description="nominal coverages, each in (0, 1)"
     )
     examples: int = Field(8, ge=0)
+    refine: bool = Field(True, description="add the 'Ours + refinement' row (kinematics/refine.py)")
+    refine_images: int = Field(
+        500, ge=0, description="the refinement runs on the first N test images"
+    )
 
 
 class DataRecord(Strict):

@@ -33,8 +33,16 @@ from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics import Estimator
 from artic.kinematics.config import MDN_KIND, MdnModelMeta
-from artic.kinematics.mdn import KinematicsMDN, Mixture, densest, most_likely, sample
+from artic.kinematics.mdn import (
+    KinematicsMDN,
+    Mixture,
+    densest,
+    marginal_interval,
+    most_likely,
+    sample,
+)
 from artic.kinematics.preprocess import InputPipeline
+from artic.kinematics.refine import INTERVAL_LEVEL, Refinement, refine
 from artic.kinematics.targets import TargetCodec
 from artic.objects.labels import joint_column, joint_vector
 
@@ -221,6 +229,25 @@ class Predictor:
                 label[self._origin(j)] = self._max_point(mix, j, points)
         return label
 
+    def refine(
+        self,
+        mix: Mixture,
+        depth: NDArray[np.floating],
+        mask: NDArray[np.bool_] | None,
+        label: NDArray[np.float64],
+    ) -> Refinement:
+        """Test-time geometric refinement of `label` (L,) against the image
+        (kinematics/refine.py) from the image's mixture's components and its central
+        `INTERVAL_LEVEL` interval."""
+        observed = np.where(mask, depth, 0) if mask is not None else depth
+        lower, upper = marginal_interval(mix, INTERVAL_LEVEL)
+        return refine(
+            np.asarray(observed, dtype=np.float32), self.camera, self.category,
+            list(self.codec.columns), label, mix.log_pi[0].exp().double().numpy(),
+            self.codec.decode(mix.mu[0].numpy()), self.codec.decode(lower[0].numpy()),
+            self.codec.decode(upper[0].numpy()),
+        )  # fmt: skip
+
     def _origin(self, joint: int) -> list[int]:
         return [self.codec.columns.index(c) for c in joint_vector(joint, "origin")]
 
@@ -247,10 +274,17 @@ class Predictor:
         estimator: Estimator = "most-likely",
         samples: int = 0,
         seed: int = 0,
+        refine: bool = False,
     ) -> dict[str, Any]:
-        """The JSON `artic predict` prints (see docs/kinematics.md)."""
+        """The JSON `artic predict` prints (see docs/kinematics.md). With `refine`, the
+        estimate is the geometric refinement's (`refine`), and `refinement` says what it
+        did; without, `refinement` says it was off."""
         mix = self.mixture(depth, mask)
         label = self._estimate(mix, depth, mask, estimator)
+        refinement: dict[str, Any] = {"status": "off (--no-refine)", "refined": False}
+        if refine:
+            result = self.refine(mix, depth, mask, label)
+            label, refinement = result.label, result.as_json()
         col = {c: i for i, c in enumerate(self.codec.columns)}
         unit = "rad" if self.joint_type == "revolute" else "m"
         joints = []
@@ -283,6 +317,7 @@ class Predictor:
                 "means": self.codec.decode(mix.mu[0].numpy()).tolist(),
                 "stds": self.codec.decode_scale(mix.sigma[0].numpy()).tolist(),
             },
+            "refinement": refinement,
         }
         if samples > 0:
             draws = sample(mix, samples, torch.Generator().manual_seed(seed))
@@ -350,8 +385,10 @@ def predict_image(
     estimator: str,
     seed: int,
     started: float,
+    refine: bool = True,
 ) -> dict[str, Any]:
-    """Everything `artic predict` prints, as a dict: `describe` of the depth image
+    """Everything `artic predict` prints, as a dict: `describe` (with the geometric
+    refinement when `refine`) of the depth image
     `image` (masked by `mask`, reprojected into the training camera when `camera`
     differs; `camera` a JSON file or a camera preset's name) with the category's model
     (`model`, else the store's choice: `artifacts.model_store.choose_model`), its inputs,
@@ -390,7 +427,7 @@ def predict_image(
         if not (depth > 0).any():
             raise InputError(f"{image}: no pixel lands inside the training camera's view")
     t1 = time.perf_counter()
-    result = predictor.describe(depth, None, estimator, samples, seed)  # type: ignore[arg-type]
+    result = predictor.describe(depth, None, estimator, samples, seed, refine)  # type: ignore[arg-type]
     t2 = time.perf_counter()
     label = np.array([result["estimate"][c] for c in predictor.codec.columns])
     mixture = result["mixture"]

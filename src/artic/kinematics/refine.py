@@ -1,0 +1,687 @@
+"""Test-time geometric refinement of a one-door estimate (issue 19, item 1).
+
+The network proposes, the depth image decides. From a hypothesis (a label vector: base
+pose x, y, z, yaw, the body's depth, width, height, the chirality and the door's q):
+
+1. render the hypothesis with the raycast backend (`render.backend`): which pixels are
+   the body's front, its sides and the door's broad faces, and where each of those faces
+   lies in the object's (or the door's) frame;
+2. take each observed pixel whose back-projected point lies within a tolerance of the
+   plane of the face its rendered pixel lies on (point to plane, not depth: a face seen
+   at a grazing angle moves far along the ray), clean each face's points with RANSAC
+   (Open3D's `segment_plane`) and fit by least squares:
+   - yaw from the body's vertical faces: the front's normal and the side's, fitted
+     together (the front normal is the eigenvector of the smallest eigenvalue of
+     C_front - C_side, C the faces' horizontal scatter matrices, each parallel plane about
+     its own mean), refitted once without the points beyond 3 robust deviations;
+   - the configuration q from the angle between the door's plane and the body's front
+     (the door's normal is the front's turned by c q about z, c the chirality);
+   - the base position (x, y) by least squares over every face's inlier points, each on
+     its face's plane in the object frame (front x = -depth/2, or the control panel's
+     -depth/2 - door thickness; side y = +-width/2; door x = -door thickness or 0 in the
+     door's frame, which puts the hinge line where the door's plane meets the body's
+     front), with a small pull towards the hypothesis so that a position the image does
+     not fix (along a closed door's front with no side in view) stays the network's;
+   - the base height z from the bottom silhouette edge (`_bottom_edge`: every face ends at
+     the base); depth, width and height stay the network's;
+3. re-render and repeat (`ITERATIONS`, with a shrinking tolerance), keeping the round
+   (or the start) with the lowest depth residual.
+
+It runs from the mixture's top components (up to `COMPONENTS`) and both hinge sides
+(each component's chirality and the other, all else equal; for the top component also
+its mirror image about the line of sight, `Hypothesis.reflected`: a network trained on
+one side may read an object hinged on the other side as that), scores every candidate by
+a robust depth residual (`depth_residual`: the mean over the union of the rendered and
+observed pixels of |rendered - observed| capped at `RESIDUAL_CAP`, a pixel seen in one
+image only counting the cap) and keeps the lowest, on the network's hinge side unless the
+other side's is lower by more than `SIDE_MARGIN` (`_choose_side`). It falls back to the
+network's estimate, and says why in `Refinement.status`, when no candidate's yaw and q
+lie inside the mixture's interval (`interval_ok`; a candidate on a hinge side that no
+component mean has, as with a model trained on one side, has no interval there and is
+judged by its residual alone), or when the chosen candidate's residual is not below the
+network's own: the returned estimate's residual is never larger than the network's.
+
+Supported: the one-door, vertical-hinge categories (`SUPPORTED`); others return the
+network's estimate with a status saying so.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from artic.geometry.camera import CameraIntrinsics
+from artic.geometry.transforms import make_transform, rot_z
+from artic.objects.model import ArticulatedObject
+from artic.objects.spec import ObjectSpec, PartsConfig, Pose
+from artic.render.backend import DepthBackend, RenderedImage
+
+#: categories with one door on a vertical hinge (chirality = hinge side)
+SUPPORTED = ("cabinet", "microwave")
+#: render-assign-fit rounds per candidate
+ITERATIONS = 3
+#: an observed point joins a face when within this of its plane (m), per round
+TOLERANCES = (0.08, 0.04, 0.03)
+#: mixture components refined (the largest weights), each from both hinge sides
+COMPONENTS = 3
+#: RANSAC inlier distance (m) and iterations (Open3D `segment_plane`)
+RANSAC_DISTANCE = 0.015
+RANSAC_ITERATIONS = 60
+#: q is read off the door's plane when it has at least this many inliers (a door seen
+#: edge-on gives a few noisy points)
+MIN_DOOR_POINTS = 20
+#: a face with fewer observed points is not fitted
+MIN_FACE_POINTS = 15
+#: an observed pixel farther than this from the rendered depth is not assigned (m)
+DEPTH_GATE = 0.3
+#: a rendered point belongs to a face when within this of the face's plane (m)
+FACE_EPS = 0.002
+#: the capped |rendered - observed| of the residual (m); a pixel seen in one image counts it
+RESIDUAL_CAP = 0.05
+#: the robust refit of a face keeps points up to at least this far from its plane (m)
+LINE_FLOOR = 0.004
+#: weight (in points) of the pull of the base position towards the hypothesis
+PRIOR_WEIGHT = 2.0
+#: a plane fit turning the yaw further than this from the hypothesis is not used (rad)
+MAX_YAW_STEP = math.radians(30.0)
+#: refined q is kept inside [0, Q_MAX] (rad)
+Q_MAX = math.pi
+#: the mixture's central interval a refined yaw and q must lie in, widened by this (rad)
+INTERVAL_LEVEL = 0.99
+INTERVAL_MARGIN = math.radians(5.0)
+#: the base height is read off the bottom silhouette edge when it has this many pixels
+MIN_EDGE_PIXELS = 5
+#: an edge pixel's rendered hypothesis must end within this many rows below it
+EDGE_ROWS = 3
+#: the other hinge side replaces the network's when its residual is lower by this fraction
+SIDE_MARGIN = 0.25
+#: fewer observed pixels than this: not refined
+MIN_OBSERVED = 50
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One object hypothesis: base pose, geometry, hinge side and configuration."""
+
+    x: float
+    y: float
+    z: float
+    yaw: float
+    depth: float
+    width: float
+    height: float
+    chirality: int
+    q: float
+
+    @classmethod
+    def from_label(cls, label: Array, columns: list[str]) -> Hypothesis:
+        """From a label vector (L,) with `columns` (docs/formats.md); sizes floored at
+        10 cm (an object's walls need room), q clipped to [0, `Q_MAX`]."""
+        v = dict(zip(columns, np.asarray(label, dtype=np.float64).tolist(), strict=True))
+        return cls(
+            v["pose_x"], v["pose_y"], v["pose_z"], v["pose_yaw"],
+            max(v["depth"], 0.1), max(v["width"], 0.1), max(v["height"], 0.1),
+            1 if v["chirality"] >= 0 else -1, float(np.clip(v["j0_q"], 0.0, Q_MAX)),
+        )  # fmt: skip
+
+    def with_pose(self, x: float, y: float, z: float, yaw: float, q: float) -> Hypothesis:
+        return Hypothesis(x, y, z, yaw, self.depth, self.width, self.height, self.chirality, q)
+
+    def mirrored(self) -> Hypothesis:
+        """The other hinge side, all else equal."""
+        return Hypothesis(
+            self.x, self.y, self.z, self.yaw, self.depth, self.width, self.height,
+            -self.chirality, self.q,
+        )  # fmt: skip
+
+    def reflected(self) -> Hypothesis:
+        """The mirror image about the vertical plane through the camera and the base: the
+        other hinge side, the yaw reflected about the line of sight (what a network that
+        read an object's mirror image would have seen turned the other way)."""
+        bearing = math.atan2(self.y, self.x)
+        return Hypothesis(
+            self.x, self.y, self.z, 2 * bearing - self.yaw, self.depth, self.width,
+            self.height, self.chirality, self.q,
+        )  # fmt: skip
+
+    def pose_matrix(self) -> Array:
+        """(4, 4) object-to-camera transform."""
+        return make_transform(rot_z(self.yaw), np.array([self.x, self.y, self.z]))
+
+    def spec(self, category: str, parts: PartsConfig) -> ObjectSpec:
+        return ObjectSpec(
+            category=category, index=0, dof=1, joint_type="revolute", depth=self.depth,
+            width=self.width, height=self.height, chirality=self.chirality,
+            pose=Pose(x=self.x, y=self.y, z=self.z, yaw=self.yaw),
+            joint_limits=((0.0, Q_MAX),), parts=parts,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One refined candidate: where it started (component, hinge side), its residual."""
+
+    component: int
+    weight: float
+    chirality: int
+    residual: float
+    inside_interval: bool
+    label: Array
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """The refined estimate (L,) (the network's when not refined), what happened
+    (`status`), the network's and the returned estimate's residuals (m) and the
+    candidates tried."""
+
+    label: Array
+    refined: bool
+    status: str
+    residual_network: float
+    residual_refined: float
+    candidates: tuple[Candidate, ...]
+
+    def as_json(self) -> dict[str, Any]:
+        """The `refinement` field of `artic predict`'s JSON."""
+        return {
+            "status": self.status,
+            "refined": self.refined,
+            "residual_network": _rounded(self.residual_network),
+            "residual_refined": _rounded(self.residual_refined),
+            "candidates": [
+                {
+                    "component": c.component,
+                    "weight": round(c.weight, 6),
+                    "chirality": c.chirality,
+                    "residual": _rounded(c.residual),
+                    "inside_interval": c.inside_interval,
+                }
+                for c in self.candidates
+            ],
+        }
+
+
+def _rounded(value: float) -> float | None:
+    return round(value, 6) if math.isfinite(value) else None
+
+
+def depth_residual(rendered: NDArray[np.floating], observed: NDArray[np.floating]) -> float:
+    """Mean over the union of the valid (> 0) pixels of |rendered - observed| capped at
+    `RESIDUAL_CAP` metres; a pixel valid in one image only counts the cap. inf when
+    neither has a pixel."""
+    r, o = rendered > 0, observed > 0
+    union = r | o
+    if not union.any():
+        return math.inf
+    diff = np.minimum(np.abs(rendered.astype(np.float64) - observed), RESIDUAL_CAP)
+    diff = np.where(r & o, diff, RESIDUAL_CAP)
+    return float(diff[union].mean())
+
+
+class PosedRenderer:
+    """Renders one object geometry (depth, width, height, chirality) at any base pose
+    and q with the raycast backend, building the object and its ray-casting scenes once.
+
+    The raycast backend keeps its scenes for the last object it saw (by identity) and
+    builds them in each rigid group's own frame, independent of the base pose; building
+    them costs ~10-30 ms an object here against ~1 ms for an image. So this object's
+    `base_pose` is replaced (a new array each time, never changed in place: the backend
+    compares the body's new pose with the last one it cast) before each render; the object
+    is this class's own and never leaves it. A test checks the images equal those of a
+    freshly built object at the same pose."""
+
+    def __init__(self, hypothesis: Hypothesis, category: str, parts: PartsConfig,
+                 camera: CameraIntrinsics) -> None:  # fmt: skip
+        from artic.objects.categories import build
+        from artic.render.backend import make_backend
+
+        self.geometry = (hypothesis.depth, hypothesis.width, hypothesis.height)
+        self.chirality = hypothesis.chirality
+        self.object: ArticulatedObject = build(hypothesis.spec(category, parts))
+        self.backend: DepthBackend = make_backend("raycast", camera)
+        joint = self.object.movable_joints[0]
+        #: the hinge frame in the body frame (4, 4) and its point (3,)
+        self.hinge = joint.origin.copy()
+        self.joint_origin = joint.origin[:3, 3].copy()
+        self.parts = parts
+        self.door_thickness = parts.door_thickness
+
+    def fits(self, h: Hypothesis) -> bool:
+        return (h.depth, h.width, h.height) == self.geometry and h.chirality == self.chirality
+
+    def render(self, h: Hypothesis) -> tuple[RenderedImage, Array]:
+        """The image of `h` and the door link's pose (4, 4)."""
+        if not self.fits(h):
+            raise ValueError("PosedRenderer: another geometry or hinge side")
+        pose = h.pose_matrix()
+        object.__setattr__(self.object, "base_pose", pose)
+        # the door link's pose: the hinge frame turned by q about its axis (0, 0, c)
+        door = pose @ self.hinge @ make_transform(rot_z(self.chirality * h.q))
+        return self.backend.render(self.object, np.array([h.q])), door
+
+    def label(self, h: Hypothesis, category: str, columns: list[str]) -> Array:
+        """The label vector (L,) of `h` in `columns` order, every column consistent with
+        the object (`objects.labels.image_labels`)."""
+        from artic.objects.labels import image_labels
+
+        if not self.fits(h):
+            raise ValueError("PosedRenderer: another geometry or hinge side")
+        object.__setattr__(self.object, "base_pose", h.pose_matrix())
+        labels = image_labels(h.spec(category, self.parts), self.object, np.array([h.q]))
+        return np.array([labels[c] for c in columns], dtype=np.float64)
+
+    def close(self) -> None:
+        self.backend.close()
+
+
+@dataclass(frozen=True)
+class _Faces:
+    """Observed points (N, 3) of each face, with each point's face offset (N,) (the
+    coordinate the rendered pixel has across its face, in the object's or door's frame)."""
+
+    front: tuple[Array, Array]
+    side: tuple[Array, Array]
+    #: the base's height (camera z) read at each bottom silhouette edge pixel (K,)
+    bottom: Array
+    door: tuple[Array, Array]
+
+
+def _faces(
+    h: Hypothesis,
+    image: RenderedImage,
+    door_pose: Array,
+    observed: NDArray[np.floating],
+    rays: NDArray[np.float32],
+    tolerance: float,
+    thickness: float,
+) -> _Faces:
+    """Group the observed pixels near the rendered hypothesis by the rendered face."""
+    rendered, mask = image.depth, image.part_mask
+    both = (rendered > 0) & (observed > 0) & (np.abs(observed - rendered) < DEPTH_GATE)
+    rows, cols = np.nonzero(both)
+    d = rays[rows, cols].astype(np.float64)
+    p_rendered = d * rendered[rows, cols, None].astype(np.float64)
+    p_observed = d * observed[rows, cols, None].astype(np.float64)
+    pose = h.pose_matrix()
+    # object-frame and door-frame coordinates of the rendered and the observed points
+    body = (p_rendered - pose[:3, 3]) @ pose[:3, :3]
+    body_seen = (p_observed - pose[:3, 3]) @ pose[:3, :3]
+    door = (p_rendered - door_pose[:3, 3]) @ door_pose[:3, :3]
+    door_seen = (p_observed - door_pose[:3, 3]) @ door_pose[:3, :3]
+    part = mask[rows, cols]
+    is_body = part == 1
+
+    def near(frame: Array, seen: Array, axis: int) -> NDArray[np.bool_]:
+        # point to plane, not depth: a face seen at a grazing angle moves far along the ray
+        return np.asarray(np.abs(seen[:, axis] - frame[:, axis]) < tolerance)
+
+    front = is_body & (body[:, 0] < -h.depth / 2 + FACE_EPS)
+    side = is_body & ~front & (np.abs(body[:, 1]) > h.width / 2 - FACE_EPS)
+    # either broad face of the door: its front (x = -thickness) or, opened far, its back
+    door_front = (part == 2) & (
+        (np.abs(door[:, 0] + thickness) < FACE_EPS) | (np.abs(door[:, 0]) < FACE_EPS)
+    )
+    front &= near(body, body_seen, 0)
+    side &= near(body, body_seen, 1)
+    bottom = _bottom_edge(rows, cols, front | side | door_front, observed, rendered, rays)
+    door_front &= near(door, door_seen, 0)
+    return _Faces(
+        (p_observed[front], body[front, 0]),
+        (p_observed[side], body[side, 1]),
+        bottom,
+        (p_observed[door_front], door[door_front, 0]),
+    )
+
+
+def _bottom_edge(
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    on_face: NDArray[np.bool_],
+    observed: NDArray[np.floating],
+    rendered: NDArray[np.floating],
+    rays: NDArray[np.float32],
+) -> Array:
+    """The height of the object's base (camera z, m) read at each bottom silhouette edge.
+
+    Per image column: the lowest face pixel, then down the observed column to its last
+    return before the background, at most `EDGE_ROWS` rows further; the column counts
+    when the rendered hypothesis also ends within `EDGE_ROWS` rows below that face pixel
+    (an edge, not a hole in the face or a face running on). Every face the groups hold
+    (the body's front and sides, the door) ends at the base (object z = 0); a vertical
+    face keeps its depth down a pixel column, so the edge, half a pixel below the last
+    return's centre, lies at z = -(v + 1/2 - cy) / fy * depth."""
+    height = observed.shape[0]
+    r, c = rows[on_face], cols[on_face]
+    if len(r) == 0:
+        return np.zeros(0)
+    lowest = np.full(observed.shape[1], -1)
+    np.maximum.at(lowest, c, r)
+    col = np.flatnonzero(lowest >= 0)
+    top = lowest[col]
+    ends = np.zeros(len(col), dtype=bool)
+    last = top.copy()
+    running = np.ones(len(col), dtype=bool)
+    for k in range(1, EDGE_ROWS + 2):
+        row = np.minimum(top + k, height - 1)
+        inside = top + k < height
+        ends |= inside & (rendered[row, col] <= 0) & (k <= EDGE_ROWS)
+        valid = inside & (observed[row, col] > 0)
+        last = np.where(running & valid, top + k, last)
+        running &= valid
+    # an edge: the return ends (not at the image border) within EDGE_ROWS rows
+    edge = ends & ~running & (last + 1 < height)
+    r, c = last[edge], col[edge]
+    step = float(rays[1, 0, 2] - rays[0, 0, 2]) if height > 1 else 0.0
+    z_dir = rays[r, c, 2].astype(np.float64) + 0.5 * step
+    return np.asarray(z_dir * observed[r, c], dtype=np.float64)
+
+
+def _ransac(points: Array, seed: int) -> NDArray[np.bool_]:
+    """Inliers (N,) of the dominant plane (Open3D's RANSAC); all False below
+    `MIN_FACE_POINTS` points."""
+    keep = np.zeros(len(points), dtype=bool)
+    if len(points) < MIN_FACE_POINTS:
+        return keep
+    import open3d as o3d
+
+    o3d.utility.random.seed(seed)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    _, inliers = cloud.segment_plane(RANSAC_DISTANCE, 3, RANSAC_ITERATIONS)
+    keep[np.asarray(inliers, dtype=np.int64)] = True
+    return keep if keep.sum() >= MIN_FACE_POINTS else np.zeros(len(points), dtype=bool)
+
+
+def _group_means(points: Array, offsets: Array, keep: NDArray[np.bool_]) -> Array:
+    """(N, 2) the mean horizontal position of the kept points on each point's parallel
+    plane (the same face offset to the millimetre: a control panel 2 cm before the body's
+    rim, a door's front and back); 0 for a plane with no kept point."""
+    if len(points) == 0:
+        return np.zeros((0, 2))
+    _, group = np.unique(np.round(offsets * 1000.0), return_inverse=True)
+    weight = keep.astype(np.float64)
+    count = np.maximum(np.bincount(group, weight), 1.0)
+    means = np.stack([np.bincount(group, weight * points[:, a]) / count for a in range(2)], axis=1)
+    return np.asarray(means[group])
+
+
+def _scatter(points: Array, offsets: Array) -> Array:
+    """(2, 2) scatter of the points' horizontal coordinates, each set of points on one
+    parallel plane about its own mean (`_group_means`), so that parallel planes do not
+    tilt the fitted normal."""
+    xy = points[:, :2] - _group_means(points, offsets, np.ones(len(points), dtype=bool))
+    return np.asarray(xy.T @ xy)
+
+
+def _line_residuals(face: tuple[Array, Array], keep: NDArray[np.bool_], n: Array) -> Array:
+    """Signed distances (N,) of a face's points from their planes of normal `n` (2,), each
+    plane through the mean of its kept points."""
+    points, offsets = face
+    return np.asarray((points[:, :2] - _group_means(points, offsets, keep)) @ n)
+
+
+def _robust_normal(
+    front: tuple[Array, Array],
+    keep_front: NDArray[np.bool_],
+    side: tuple[Array, Array],
+    keep_side: NDArray[np.bool_],
+) -> tuple[Array, NDArray[np.bool_], NDArray[np.bool_]]:
+    """The front normal (2,) of a total least-squares fit over the `front` points and the
+    perpendicular `side` points (`_scatter`), refitted after dropping the points farther
+    than 3 robust standard deviations (at least `LINE_FLOOR`) from the fit (a neighbouring
+    face's points that RANSAC kept, such as the top's along the front edge); the kept
+    points of each."""
+    kf, ks = keep_front.copy(), keep_side.copy()
+    n = np.array([1.0, 0.0])
+    for rounds in range(2):
+        scatter = _scatter(front[0][kf], front[1][kf]) - _scatter(side[0][ks], side[1][ks])
+        n = np.linalg.eigh(scatter)[1][:, 0]
+        if rounds == 1:
+            break
+        rf = np.abs(_line_residuals(front, kf, n))
+        rs = np.abs(_line_residuals(side, ks, np.array([-n[1], n[0]])))
+        kept = np.concatenate([rf[kf], rs[ks]])
+        limit = max(3.0 * 1.4826 * float(np.median(kept)), LINE_FLOOR)
+        kf, ks = kf & (rf < limit), ks & (rs < limit)
+        if kf.sum() + ks.sum() < MIN_FACE_POINTS:
+            kf, ks = keep_front.copy(), keep_side.copy()
+    return n, kf, ks
+
+
+def _angle(v: Array) -> float:
+    return math.atan2(float(v[1]), float(v[0]))
+
+
+def _wrap(a: float) -> float:
+    return math.pi - (math.pi - a) % (2 * math.pi)
+
+
+def _fit(h: Hypothesis, faces: _Faces, joint_origin: Array, seed: int) -> Hypothesis:
+    """One least-squares step (module docstring, step 2) from the grouped points."""
+    inl = {
+        name: _ransac(getattr(faces, name)[0], seed + k)
+        for k, name in enumerate(("front", "side", "door"))
+    }
+    # yaw from the body's vertical faces: front normal n minimises n'C_f n + n_perp'C_s n_perp
+    yaw = h.yaw
+    if inl["front"].sum() + inl["side"].sum() > 0:
+        n, inl["front"], inl["side"] = _robust_normal(faces.front, inl["front"], faces.side,
+                                                      inl["side"])  # fmt: skip
+        outward = -np.array([math.cos(h.yaw), math.sin(h.yaw)])  # the front faces -x_object
+        n = n if n @ outward >= 0 else -n
+        fitted = _angle(-n)
+        if abs(_wrap(fitted - h.yaw)) <= MAX_YAW_STEP:
+            yaw = fitted
+    # q from the door's front normal against the body's front (normal turned by c q)
+    q = h.q
+    if inl["door"].sum() >= MIN_DOOR_POINTS:
+        no_side = (np.zeros((0, 3)), np.zeros(0))
+        n_door, inl["door"], _ = _robust_normal(faces.door, inl["door"], no_side,
+                                                np.zeros(0, dtype=bool))  # fmt: skip
+        options = [h.chirality * _wrap(_angle(s * n_door) - (yaw + math.pi)) for s in (1.0, -1.0)]
+        q = float(np.clip(min(options, key=lambda v: abs(v - h.q)), 0.0, Q_MAX))
+    # base position: each inlier on its face's plane, plus a pull towards the hypothesis
+    rot = rot_z(yaw)
+    door_rot = rot @ rot_z(h.chirality * q)
+    rows: list[Array] = []
+    rhs: list[Array] = []
+    pts, offset = faces.front
+    a = rot[:, 0]  # object x in the camera frame
+    rows.append(np.tile(a, (int(inl["front"].sum()), 1)))
+    rhs.append(pts[inl["front"]] @ a - offset[inl["front"]])
+    pts, offset = faces.side
+    a = rot[:, 1]
+    rows.append(np.tile(a, (int(inl["side"].sum()), 1)))
+    rhs.append(pts[inl["side"]] @ a - offset[inl["side"]])
+    pts, offset = faces.door
+    a = door_rot[:, 0]  # the door's x: x_door = a . (p - t - R o_joint)
+    rows.append(np.tile(a, (int(inl["door"].sum()), 1)))
+    rhs.append(pts[inl["door"]] @ a - a @ (rot @ joint_origin) - offset[inl["door"]])
+    prior = math.sqrt(PRIOR_WEIGHT)
+    rows.append(prior * np.eye(3)[:2])
+    rhs.append(prior * np.array([h.x, h.y]))
+    # every face normal is horizontal: the position across them is (x, y) alone
+    t = np.linalg.lstsq(np.concatenate(rows)[:, :2], np.concatenate(rhs), rcond=None)[0]
+    z = float(np.median(faces.bottom)) if len(faces.bottom) >= MIN_EDGE_PIXELS else h.z
+    return h.with_pose(float(t[0]), float(t[1]), z, yaw, q)
+
+
+def refine_hypothesis(
+    start: Hypothesis,
+    renderer: PosedRenderer,
+    observed: NDArray[np.floating],
+    rays: NDArray[np.float32],
+    seed: int = 0,
+) -> tuple[Hypothesis, float]:
+    """`ITERATIONS` render-assign-fit rounds from `start`; of the start and each round's
+    result, the one with the lowest depth residual, and that residual."""
+    h = start
+    image, door_pose = renderer.render(h)
+    best = (h, depth_residual(image.depth, observed))
+    # Open3D's RANSAC on one OpenMP thread: the same inliers on any machine, and on a
+    # busy 2-core host ~0.1 ms a fit instead of ~6 ms of thread start-up
+    with _threadpools().limit(limits=1, user_api="openmp"):
+        for k in range(ITERATIONS):
+            tolerance = TOLERANCES[min(k, len(TOLERANCES) - 1)]
+            faces = _faces(h, image, door_pose, observed, rays, tolerance, renderer.door_thickness)
+            h = _fit(h, faces, renderer.joint_origin, seed)
+            image, door_pose = renderer.render(h)
+            residual = depth_residual(image.depth, observed)
+            if residual < best[1]:
+                best = (h, residual)
+    return best
+
+
+@functools.cache
+def _threadpools() -> Any:
+    """threadpoolctl's controller (finding the loaded libraries once: ~4 ms each time)."""
+    import open3d  # noqa: F401  (loaded before the controller lists the libraries)
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
+
+
+def interval_ok(label: Array, columns: list[str], lower: Array, upper: Array) -> bool:
+    """True when the label's yaw and q lie inside [lower, upper] (label units) widened by
+    `INTERVAL_MARGIN`: the quantities the planes read."""
+    for name in ("pose_yaw", "j0_q"):
+        i = columns.index(name)
+        if not lower[i] - INTERVAL_MARGIN <= label[i] <= upper[i] + INTERVAL_MARGIN:
+            return False
+    return True
+
+
+def refine(
+    observed: NDArray[np.floating],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    estimate: Array,
+    weights: Array,
+    means: Array,
+    lower: Array,
+    upper: Array,
+    parts: PartsConfig | None = None,
+) -> Refinement:
+    """Refine the network's `estimate` (L,) of the depth image `observed` (H, W) metres in
+    `camera` (the model's camera; 0 = no return), given the mixture's `weights` (m,),
+    component `means` (m, L) and central interval [`lower`, `upper`] (L,) in label units
+    (`INTERVAL_LEVEL`), for an object of `category` built with `parts` (default: the
+    categories' defaults). Never raises on an image: a refinement that cannot run returns
+    the network's estimate and says why (module docstring)."""
+    parts = parts or PartsConfig()
+    estimate = np.asarray(estimate, dtype=np.float64)
+    none: tuple[Candidate, ...] = ()
+    if category not in SUPPORTED:
+        return Refinement(
+            estimate, False, f"not refined: {category} not supported yet", math.nan, math.nan, none
+        )
+    observed = np.where(np.isfinite(observed), observed, 0).astype(np.float32)
+    if observed.shape != (camera.height, camera.width):
+        return Refinement(
+            estimate, False, "not refined: the image is not in the model's camera",
+            math.nan, math.nan, none,
+        )  # fmt: skip
+    if int((observed > 0).sum()) < MIN_OBSERVED:
+        return Refinement(
+            estimate, False, f"not refined: fewer than {MIN_OBSERVED} valid pixels",
+            math.nan, math.nan, none,
+        )  # fmt: skip
+    if not (np.isfinite(estimate).all() and np.isfinite(np.asarray(means)).all()):
+        return Refinement(
+            estimate, False, "not refined: the network's estimate is not finite",
+            math.nan, math.nan, none,
+        )  # fmt: skip
+    network = Hypothesis.from_label(estimate, columns)
+    try:
+        residual_network, candidates = _candidates(
+            network, observed, camera, category, columns, weights, means, lower, upper, parts
+        )
+    except (ValueError, np.linalg.LinAlgError) as err:  # an object the builder refuses
+        return Refinement(
+            estimate, False, f"fallback: the refinement failed ({str(err).splitlines()[0]})",
+            math.nan, math.nan, none,
+        )  # fmt: skip
+    inside = [c for c in candidates if c.inside_interval]
+    if not inside:
+        status = f"fallback: no candidate inside the mixture's {INTERVAL_LEVEL:.0%} interval"
+        return Refinement(estimate, False, status, residual_network, residual_network,
+                          tuple(candidates))  # fmt: skip
+    best = _choose_side(inside, network.chirality)
+    if not best.residual < residual_network:
+        status = "fallback: no candidate has a lower depth residual than the network's estimate"
+        return Refinement(estimate, False, status, residual_network, residual_network,
+                          tuple(candidates))  # fmt: skip
+    status = f"refined: component {best.component}, chirality {best.chirality:+d}"
+    return Refinement(best.label, True, status, residual_network, best.residual, tuple(candidates))
+
+
+def _candidates(
+    network: Hypothesis,
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    weights: Array,
+    means: Array,
+    lower: Array,
+    upper: Array,
+    parts: PartsConfig,
+) -> tuple[float, list[Candidate]]:
+    """The network's residual and every refined candidate (module docstring)."""
+    rays = camera.ray_directions()
+    renderers = {c: PosedRenderer(_side(network, c), category, parts, camera) for c in (1, -1)}
+    try:
+        image, _ = renderers[network.chirality].render(network)
+        residual_network = depth_residual(image.depth, observed)
+        order = np.argsort(-np.asarray(weights), kind="stable")[:COMPONENTS]
+        chirality = np.asarray(means)[:, columns.index("chirality")]
+        covered = {1 if c >= 0 else -1 for c in chirality.tolist()}
+        candidates = []
+        for rank, k in enumerate(order.tolist()):
+            component = Hypothesis.from_label(means[k], columns)
+            # the estimate's geometry for every start: one object per hinge side
+            base = network.with_pose(component.x, component.y, component.z, component.yaw,
+                                     component.q)  # fmt: skip
+            side = component.chirality
+            starts = [_side(base, side), _side(base, -side)]
+            if rank == 0:  # and the top component's mirror image about the line of sight
+                starts.append(_side(base, -side).reflected())
+            for start in starts:
+                h, residual = refine_hypothesis(
+                    start, renderers[start.chirality], observed, rays, seed=rank
+                )
+                label = renderers[h.chirality].label(h, category, columns)
+                # a side the mixture never puts weight on has no interval to lie in
+                judged = h.chirality in covered
+                candidates.append(Candidate(
+                    int(k), float(weights[k]), h.chirality, residual,
+                    interval_ok(label, columns, lower, upper) if judged else True, label,
+                ))  # fmt: skip
+    finally:
+        for r in renderers.values():
+            r.close()
+    return residual_network, candidates
+
+
+def _choose_side(candidates: list[Candidate], network_side: int) -> Candidate:
+    """The lowest-residual candidate, the network's hinge side unless the other side's best
+    residual is lower by more than `SIDE_MARGIN` of it (a closed door's mirror image fits
+    the depth about as well: there the network's side stands)."""
+    best = min(candidates, key=lambda c: c.residual)
+    same = [c for c in candidates if c.chirality == network_side]
+    if best.chirality == network_side or not same:
+        return best
+    keep = min(same, key=lambda c: c.residual)
+    return best if best.residual < (1.0 - SIDE_MARGIN) * keep.residual else keep
+
+
+def _side(h: Hypothesis, chirality: int) -> Hypothesis:
+    return h if h.chirality == chirality else h.mirrored()

@@ -1,0 +1,254 @@
+"""Test-time geometric refinement (issue 19, item 1; item 2's two-sided test).
+
+Rendered synthetic objects (the raycast backend, the thesis generator's 192x108 camera)
+with known pose, hinge side and configuration: the plane fits recover the door angle
+and the hinge from a perturbed start, the two-sided test picks the mirrored side, the
+returned estimate's depth residual is never above the network's, an unsupported category
+or an empty image returns the network's estimate with a status, and `artic predict`
+prints the `refinement` field.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from artic.artifacts.depth_dataset import DepthDataset
+from artic.geometry.camera import CameraIntrinsics
+from artic.kinematics.refine import (
+    Hypothesis,
+    PosedRenderer,
+    depth_residual,
+    refine,
+    refine_hypothesis,
+)
+from artic.objects.categories import build
+from artic.objects.labels import label_columns
+from artic.objects.spec import PartsConfig
+from artic.render.backend import make_backend
+from artic.render.noise import SensorNoiseConfig, apply_sensor_noise
+from cli_runner import run_cli
+
+CAMERA = CameraIntrinsics(fx=105.404, fy=105.404, cx=95.5, cy=53.5, width=192, height=108)
+COLUMNS = label_columns(1)
+PARTS = PartsConfig()
+
+
+def _truth(
+    category: str, chirality: int, q: float, yaw: float = 0.3, y: float = 0.05
+) -> Hypothesis:
+    return Hypothesis(1.4, y, -0.45, yaw, 0.4, 0.6, 0.35, chirality, q)
+
+
+def _image(h: Hypothesis, category: str) -> np.ndarray:
+    with make_backend("raycast", CAMERA) as backend:
+        return backend.render(build(h.spec(category, PARTS)), np.array([h.q])).depth
+
+
+def _label(h: Hypothesis, category: str) -> np.ndarray:
+    renderer = PosedRenderer(h, category, PARTS, CAMERA)
+    try:
+        return renderer.label(h, category, COLUMNS)
+    finally:
+        renderer.close()
+
+
+def _origin(label: np.ndarray) -> np.ndarray:
+    return label[[COLUMNS.index(f"j0_origin_{a}") for a in "xyz"]]
+
+
+def _wide(label: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An interval that holds anything near `label`."""
+    return label - 10.0, label + 10.0
+
+
+def test_posed_renderer_gives_the_images_of_a_freshly_built_object():
+    start = _truth("microwave", 1, 0.6)
+    renderer = PosedRenderer(start, "microwave", PARTS, CAMERA)
+    try:
+        for h in (start, start.with_pose(1.6, -0.1, -0.3, -0.2, 1.1), start):
+            image, _ = renderer.render(h)
+            with make_backend("raycast", CAMERA) as backend:
+                fresh = backend.render(build(h.spec("microwave", PARTS)), np.array([h.q]))
+            np.testing.assert_array_equal(image.depth, fresh.depth)
+            np.testing.assert_array_equal(image.part_mask, fresh.part_mask)
+    finally:
+        renderer.close()
+
+
+@pytest.mark.parametrize("category", ["microwave", "cabinet"])
+@pytest.mark.parametrize("chirality", [1, -1])
+@pytest.mark.parametrize("q", [0.25, 1.1])
+def test_plane_fit_recovers_the_door_angle_and_the_hinge(category, chirality, q):
+    """A cabinet's door covers its front: the body's yaw comes from a side in view (a
+    cabinet turned so that no side shows keeps the network's yaw, docs/kinematics.md)."""
+    if category == "microwave":
+        truth = _truth(category, chirality, q, yaw=-0.25 * chirality)
+    else:
+        truth = _truth(category, chirality, q, yaw=0.2 * chirality, y=-0.3 * chirality)
+    observed = _image(truth, category)
+    start = truth.with_pose(truth.x + 0.03, truth.y - 0.03, truth.z + 0.015, truth.yaw + 0.05,
+                            truth.q - 0.08)  # fmt: skip
+    renderer = PosedRenderer(start, category, PARTS, CAMERA)
+    try:
+        h, residual = refine_hypothesis(start, renderer, observed, CAMERA.ray_directions())
+        refined = renderer.label(h, category, COLUMNS)
+    finally:
+        renderer.close()
+    assert abs(math.degrees(h.yaw - truth.yaw)) < 1.0
+    assert abs(math.degrees(h.q - truth.q)) < 1.0
+    hinge_error = np.linalg.norm(_origin(refined) - _origin(_label(truth, category)))
+    assert hinge_error < 0.01, f"hinge {100 * hinge_error:.2f} cm off"
+    assert residual < 0.005
+
+
+@pytest.mark.parametrize("chirality", [1, -1])
+def test_plane_fit_within_the_sensor_noise(chirality, q=0.25):
+    """The same with the project's Kinect noise model (axial and lateral noise, disparity
+    steps, edge dropout; one draw): within 1 deg and 1.5 cm. (A door opened far under
+    noise is where the fit can drift: docs/kinematics.md, "Geometric refinement".)"""
+    truth = _truth("microwave", chirality, q, yaw=-0.25 * chirality)
+    observed = apply_sensor_noise(_image(truth, "microwave"), SensorNoiseConfig(),
+                                  np.random.default_rng(0), image_fx=CAMERA.fx)  # fmt: skip
+    start = truth.with_pose(truth.x + 0.03, truth.y - 0.03, truth.z + 0.015, truth.yaw + 0.05,
+                            truth.q - 0.08)  # fmt: skip
+    renderer = PosedRenderer(start, "microwave", PARTS, CAMERA)
+    try:
+        h, _ = refine_hypothesis(start, renderer, observed, CAMERA.ray_directions())
+        refined = renderer.label(h, "microwave", COLUMNS)
+    finally:
+        renderer.close()
+    assert abs(math.degrees(h.yaw - truth.yaw)) < 1.0
+    assert abs(math.degrees(h.q - truth.q)) < 1.0
+    assert np.linalg.norm(_origin(refined) - _origin(_label(truth, "microwave"))) < 0.015
+
+
+@pytest.mark.parametrize("category", ["microwave", "cabinet"])
+def test_two_sided_test_picks_the_mirrored_side(category):
+    """An object hinged on the camera's left (chirality -1), an estimate and a mixture
+    saying +1: the refinement answers -1 with the hinge where it is."""
+    truth = _truth(category, -1, 0.7, yaw=0.2)
+    observed = _image(truth, category)
+    wrong = truth.mirrored().with_pose(truth.x + 0.02, truth.y, truth.z, truth.yaw + 0.04, 0.6)
+    estimate = _label(wrong, category)
+    result = refine(observed, CAMERA, category, COLUMNS, estimate, np.array([1.0]),
+                    estimate[None], *_wide(estimate))  # fmt: skip
+    assert result.refined, result.status
+    assert result.label[COLUMNS.index("chirality")] == -1
+    assert {c.chirality for c in result.candidates} == {1, -1}
+    assert np.linalg.norm(_origin(result.label) - _origin(_label(truth, category))) < 0.01
+    assert result.residual_refined < result.residual_network
+
+
+def test_refinement_never_returns_a_larger_residual_than_the_networks():
+    rng = np.random.default_rng(3)
+    for trial in range(4):
+        chirality = int(rng.choice([-1, 1]))
+        truth = Hypothesis(rng.uniform(1.1, 1.8), rng.uniform(-0.3, 0.3), rng.uniform(-0.6, 0.0),
+                           rng.uniform(-0.6, 0.6), 0.4, 0.55, 0.33, chirality,
+                           rng.uniform(0.0, 1.5))  # fmt: skip
+        observed = _image(truth, "microwave")
+        # estimates from near to wildly off (another place, turned, the other side)
+        shift = [0.02, 0.1, 0.3, 0.6][trial]
+        guess = Hypothesis(truth.x + shift, truth.y - shift, truth.z, truth.yaw + shift,
+                           0.45, 0.5, 0.3, -chirality if trial % 2 else chirality,
+                           abs(truth.q - shift))  # fmt: skip
+        estimate = _label(guess, "microwave")
+        components = np.stack([estimate, _label(guess.mirrored(), "microwave")])
+        for lower, upper in (_wide(estimate), (estimate, estimate)):
+            result = refine(observed, CAMERA, "microwave", COLUMNS, estimate,
+                            np.array([0.7, 0.3]), components, lower, upper)  # fmt: skip
+            assert result.residual_refined <= result.residual_network
+            # the returned label, rendered again, keeps that promise
+            back = Hypothesis.from_label(result.label, COLUMNS)
+            renderer = PosedRenderer(back, "microwave", PARTS, CAMERA)
+            try:
+                again = depth_residual(renderer.render(back)[0].depth, observed)
+            finally:
+                renderer.close()
+            assert again == pytest.approx(result.residual_refined, abs=1e-9)
+            if not result.refined:
+                np.testing.assert_array_equal(result.label, estimate)
+                assert result.status.startswith("fallback")
+
+
+def test_an_interval_that_excludes_every_fit_falls_back_and_says_why():
+    """A mixture over both hinge sides judges every candidate by its interval (a side the
+    mixture never puts weight on has none: the two-sided test above)."""
+    truth = _truth("microwave", 1, 0.9)
+    observed = _image(truth, "microwave")
+    guess = truth.with_pose(truth.x, truth.y, truth.z, truth.yaw + 0.1, 0.7)
+    estimate = _label(guess, "microwave")
+    components = np.stack([estimate, _label(guess.mirrored(), "microwave")])
+    result = refine(observed, CAMERA, "microwave", COLUMNS, estimate, np.array([0.9, 0.1]),
+                    components, estimate - 1e-6, estimate + 1e-6)  # fmt: skip
+    assert not result.refined
+    assert "interval" in result.status
+    assert not any(c.inside_interval for c in result.candidates)
+    np.testing.assert_array_equal(result.label, estimate)
+
+
+def test_refinement_is_deterministic():
+    truth = _truth("cabinet", -1, 0.5)
+    observed = _image(truth, "cabinet")
+    estimate = _label(truth.with_pose(truth.x + 0.03, truth.y, truth.z, truth.yaw, 0.45), "cabinet")
+    args = (observed, CAMERA, "cabinet", COLUMNS, estimate, np.array([1.0]), estimate[None],
+            *_wide(estimate))  # fmt: skip
+    first, second = refine(*args), refine(*args)
+    assert first.label.tobytes() == second.label.tobytes()
+    assert first.as_json() == second.as_json()
+
+
+def test_unsupported_category_or_empty_image_returns_the_networks_estimate():
+    estimate = _label(_truth("microwave", 1, 0.5), "microwave")
+    observed = _image(_truth("microwave", 1, 0.5), "microwave")
+    args = (estimate, np.array([1.0]), estimate[None], *_wide(estimate))
+    result = refine(observed, CAMERA, "drawer", COLUMNS, *args)
+    assert result.status == "not refined: drawer not supported yet"
+    assert not result.refined and result.candidates == ()
+    np.testing.assert_array_equal(result.label, estimate)
+    empty = refine(np.zeros_like(observed), CAMERA, "microwave", COLUMNS, *args)
+    assert empty.status.startswith("not refined: fewer than")
+    np.testing.assert_array_equal(empty.label, estimate)
+    assert json.dumps(empty.as_json())  # NaN residuals are written as null
+    nan = estimate.copy()
+    nan[COLUMNS.index("pose_yaw")] = np.nan
+    broken = refine(observed, CAMERA, "microwave", COLUMNS, nan, np.array([1.0]), nan[None],
+                    *_wide(estimate))  # fmt: skip
+    assert broken.status == "not refined: the network's estimate is not finite"
+
+
+@pytest.fixture(scope="module")
+def training_image(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A training image (float metres .npy) and its camera file."""
+    ds = DepthDataset.open(tiny_depth)
+    folder = tmp_path_factory.mktemp("image")
+    np.save(folder / "depth.npy", next(ds.shards()).depth[0])
+    (folder / "camera.json").write_text(ds.info.camera.model_dump_json())
+    return folder / "depth.npy", folder / "camera.json"
+
+
+def test_predict_prints_the_refinement(tiny_model, training_image, tmp_path):
+    image, camera = training_image
+    model = tmp_path / "model.pt"
+    shutil.copyfile(tiny_model / "model.pt", model)
+    base = ("predict", str(image), "--category", "microwave", "--camera", str(camera),
+            "--model", str(model))  # fmt: skip
+    code, out, err = run_cli(*base)
+    assert code == 0, err
+    result = json.loads(out)
+    refinement = result["refinement"]
+    assert {"status", "residual_network", "residual_refined", "candidates"} <= set(refinement)
+    assert refinement["candidates"], refinement["status"]
+    assert refinement["residual_refined"] <= refinement["residual_network"]
+    code, out, err = run_cli(*base, "--no-refine")
+    assert code == 0, err
+    plain = json.loads(out)
+    assert plain["refinement"]["status"].startswith("off")
+    if not refinement["refined"]:
+        assert plain["estimate"] == result["estimate"]
