@@ -4,7 +4,7 @@ objects the MDN never trained on, rendered by a camera of another tool, predicte
 
     .venv/bin/python bench/independent_mdn_objects.py --category microwave|cabinet \
         --objects 60 --seed 0 --model DIR [--report DIR] --out DIR \
-        [--sides both|left|right] [--sizes table_a1|generator] [--builder bench|artic]
+        [--sides both|left|right] [--sizes table_a1|generator] [--builder bench|artic] [--no-refine]
 
 `--model`: a `train-mdn` output folder (its `model.pt`) or a model file, of `--category`.
 `--report`: an `artic evaluate mdn` output folder of that model: the median axis-position
@@ -155,6 +155,7 @@ SUMMARY_COLUMNS: Final = (
     "category",
     "sides",
     "sizes",
+    "estimator",
     "images",
     "axis_position_cm_median",
     "yaw_deg_median",
@@ -825,8 +826,16 @@ def model_file(model: Path, category: str) -> Path:
     return path
 
 
-def withheld_median(report: Path, category: str) -> float:
-    """The median axis-position error (cm) of the network ("Ours") in an `artic evaluate
+def method_name(refine: bool) -> str:
+    """The `evaluate mdn` method of predict's estimate with or without the refinement."""
+    from artic.kinematics.evaluate import REFINED
+
+    return REFINED if refine else "Ours"
+
+
+def withheld_median(report: Path, category: str, refine: bool = True) -> float:
+    """The median axis-position error (cm) of the estimate this run scores (`method_name`:
+    "Ours + refinement" when refining, else the network's "Ours") in an `artic evaluate
     mdn` output folder's errors.csv (of `category`, when its manifest.json says)."""
     from artic.artifacts.formats import read_csv, read_json
 
@@ -843,14 +852,19 @@ def withheld_median(report: Path, category: str) -> float:
     if not rows or "method" not in rows[0] or "position_cm" not in rows[0]:
         raise InputError(f"{path}: expected the columns method and position_cm")
     method, position = rows[0].index("method"), rows[0].index("position_cm")
-    ours = [float(r[position]) for r in rows[1:] if r[method] == "Ours"]
+    name = method_name(refine)
+    ours = [float(r[position]) for r in rows[1:] if r[method] == name]
     if not ours:
-        raise InputError(f"{path}: no row of method Ours")
+        raise InputError(f"{path}: no row of method {name}")
     return float(np.median(ours))
 
 
 def summary_rows(
-    category: str, sizes: str, errors: list[tuple[str, Score]], withheld: float | None
+    category: str,
+    sizes: str,
+    errors: list[tuple[str, Score]],
+    withheld: float | None,
+    refine: bool = True,
 ) -> list[list[Any]]:
     """summary.csv: one row per side present ("right", "left"), then "both" when both
     are. Medians over the images; percentages 0-100; ratio = median / withheld."""
@@ -868,6 +882,7 @@ def summary_rows(
                 category,
                 name,
                 sizes,
+                method_name(refine),
                 len(group),
                 round(median, 3),
                 round(float(np.median([e.yaw_deg for e in group])), 3),
@@ -894,6 +909,7 @@ def run(
     sides: str = "both",
     sizes: str = "table_a1",
     builder: str = "bench",
+    refine: bool = True,
 ) -> list[list[Any]]:
     """Generate, render, write, predict and score (module docstring); the summary rows.
     Everything is checked before `out` is created; InputError on bad input."""
@@ -917,7 +933,7 @@ def run(
     if builder not in ("bench", "artic"):
         raise InputError(f"--builder: {builder!r}; expected bench or artic")
     path = model_file(model, category)
-    withheld = withheld_median(report, category) if report is not None else None
+    withheld = withheld_median(report, category, refine) if report is not None else None
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise InputError(f"--out: {out} exists and is not an empty folder")
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -940,7 +956,7 @@ def run(
                 specs.append(spec.model_dump_json())
                 result = predict_image(
                     png, category, str(tmp / "camera.json"), path, None, 0, ESTIMATOR, seed,
-                    time.perf_counter(),
+                    time.perf_counter(), refine,
                 )  # fmt: skip
                 result["warnings"] = [w.replace(str(tmp), str(out)) for w in result["warnings"]]
                 s = score(result, image.labels)
@@ -953,7 +969,7 @@ def run(
         write_csv(tmp / "labels.csv", ["image", "object_id", "side", *columns], label_rows)
         (tmp / "objects.jsonl").write_text("".join(f"{s}\n" for s in specs))
         write_csv(tmp / "errors.csv", ERROR_COLUMNS, error_rows)
-        rows = summary_rows(category, sizes, scored, withheld)
+        rows = summary_rows(category, sizes, scored, withheld, refine)
         write_csv(tmp / "summary.csv", SUMMARY_COLUMNS, rows)
         if out.exists():
             out.rmdir()  # empty (checked above)
@@ -966,8 +982,8 @@ def run(
 
 def _table(rows: list[list[Any]]) -> str:
     """The summary as an aligned text table."""
-    header = ["sides", "images", "axis cm", "yaw deg", "config deg", "side ok %", "warned %",
-              "withheld cm", "ratio"]  # fmt: skip
+    header = ["sides", "estimator", "images", "axis cm", "yaw deg", "config deg", "side ok %",
+              "warned %", "withheld cm", "ratio"]  # fmt: skip
     body = [[str(v) for v in (r[1], *r[3:])] for r in rows]
     widths = [max(len(x) for x in col) for col in zip(header, *body, strict=True)]
     return "\n".join(
@@ -998,6 +1014,9 @@ def main(argv: Sequence[str]) -> int:
     parser.add_argument(
         "--builder", default="bench", help="bench (this file's objects) | artic (the control)"
     )
+    parser.add_argument(
+        "--no-refine", action="store_true", help="the network's estimate, as predict --no-refine"
+    )
     parser.error = _one_line_error  # type: ignore[method-assign]
     args = parser.parse_args(argv)
     logger = logging.getLogger("artic")
@@ -1006,7 +1025,7 @@ def main(argv: Sequence[str]) -> int:
     try:
         rows = run(
             args.category, args.objects, args.seed, args.model, args.out, args.report,
-            args.sides, args.sizes, args.builder,
+            args.sides, args.sizes, args.builder, not args.no_refine,
         )  # fmt: skip
     except InputError as error:
         print(f"error: {error}", file=sys.stderr)

@@ -173,12 +173,14 @@ def test_sizes_and_distributions(bench: ModuleType) -> None:
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An evaluate-mdn-like folder: errors.csv with the network's ("Ours") rows."""
+    """An evaluate-mdn-like folder: errors.csv with the network's ("Ours") and the refined
+    ("Ours + refinement") rows."""
     folder = tmp_path_factory.mktemp("report")
     (folder / "errors.csv").write_text(
         "method,image,object_id,position_cm,rotation_deg,configuration\n"
         "Mean,0,1,50.0,1.0,1.0\nOurs,0,1,2.0,1.0,1.0\nOurs,1,1,6.0,1.0,1.0\n"
-        "Ours,2,2,4.0,1.0,1.0\n"
+        "Ours,2,2,4.0,1.0,1.0\nOurs + refinement,0,1,1.0,1.0,1.0\n"
+        "Ours + refinement,1,1,3.0,1.0,1.0\n"
     )
     return folder
 
@@ -191,8 +193,8 @@ def test_tiny_end_to_end_writes_both_csvs(
     withheld median read from the report; the same images and labels again."""
     outs = [tmp_path / "a", tmp_path / "b"]
     for out in outs:
-        argv = ["--category", "microwave", "--objects", "2", "--seed", "0", "--model",
-                str(tiny_model), "--report", str(report), "--out", str(out)]  # fmt: skip
+        argv = ["--category", "microwave", "--objects", "2", "--seed", "0", "--no-refine",
+                "--model", str(tiny_model), "--report", str(report), "--out", str(out)]  # fmt: skip
         assert bench.main(argv) == 0
     out = outs[0]
     errors = read_csv(out / "errors.csv")
@@ -206,6 +208,7 @@ def test_tiny_end_to_end_writes_both_csvs(
     assert [r[1] for r in summary[1:]] == ["right", "left", "both"]
     both = dict(zip(summary[0], summary[-1], strict=True))
     assert both["images"] == "2" and both["withheld_axis_position_cm_median"] == "4.0"
+    assert both["estimator"] == "Ours"  # --no-refine: the network's, against its withheld rows
     assert float(both["ratio"]) == pytest.approx(float(both["axis_position_cm_median"]) / 4.0, 1e-3)
     labels = read_csv(out / "labels.csv")
     assert labels[0] == ["image", "object_id", "side", *label_columns(1)]
@@ -256,4 +259,5 @@ def test_report_of_another_category_exits_2(
     assert bench.main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "an evaluation of cabinet" in err[0], err
-    assert bench.withheld_median(report, "microwave") == 4.0  # "Ours" rows only
+    assert bench.withheld_median(report, "microwave", refine=False) == 4.0  # "Ours" rows only
+    assert bench.withheld_median(report, "microwave") == 2.0  # "Ours + refinement" rows
