@@ -21,8 +21,11 @@ import pytest
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics.refine import (
+    SIDE_MARGIN,
+    Candidate,
     Hypothesis,
     PosedRenderer,
+    _choose_side,
     depth_residual,
     refine,
     refine_hypothesis,
@@ -252,3 +255,18 @@ def test_predict_prints_the_refinement(tiny_model, training_image, tmp_path):
     assert plain["refinement"]["status"].startswith("off")
     if not refinement["refined"]:
         assert plain["estimate"] == result["estimate"]
+
+
+def test_the_other_hinge_side_needs_a_margin_only_from_a_confident_network():
+    """A residual 15% lower on the other side: not enough against a network with all its
+    weight on its side (margin SIDE_MARGIN), enough against a mixture split evenly."""
+    assert SIDE_MARGIN > 0.15
+
+    def candidate(chirality: int, residual: float) -> Candidate:
+        return Candidate(0, 1.0, chirality, residual, True, np.zeros(1))
+
+    ours, other = candidate(1, 0.040), candidate(-1, 0.034)
+    assert _choose_side([ours, other], 1, side_weight=1.0) is ours
+    assert _choose_side([ours, other], 1, side_weight=0.5) is other
+    assert _choose_side([ours, other], 1, side_weight=0.55) is other  # margin 0.025
+    assert _choose_side([ours, candidate(-1, 0.041)], 1, side_weight=0.5) is ours

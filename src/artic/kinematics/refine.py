@@ -98,7 +98,9 @@ INTERVAL_MARGIN = math.radians(5.0)
 MIN_EDGE_PIXELS = 5
 #: an edge pixel's rendered hypothesis must end within this many rows below it
 EDGE_ROWS = 3
-#: the other hinge side replaces the network's when its residual is lower by this fraction
+#: the other hinge side replaces the network's when its residual is lower by this fraction,
+#: when the mixture puts all its weight on the network's side; the margin shrinks with that
+#: weight w as SIDE_MARGIN (2 w - 1), to 0 for a mixture split evenly between the sides
 SIDE_MARGIN = 0.25
 #: fewer observed pixels than this: not refined
 MIN_OBSERVED = 50
@@ -614,7 +616,8 @@ def refine(
         status = f"fallback: no candidate inside the mixture's {INTERVAL_LEVEL:.0%} interval"
         return Refinement(estimate, False, status, residual_network, residual_network,
                           tuple(candidates))  # fmt: skip
-    best = _choose_side(inside, network.chirality)
+    best = _choose_side(inside, network.chirality, _side_weight(network.chirality, weights, means,
+                                                                 columns))  # fmt: skip
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
         return Refinement(estimate, False, status, residual_network, residual_network,
@@ -671,16 +674,32 @@ def _candidates(
     return residual_network, candidates
 
 
-def _choose_side(candidates: list[Candidate], network_side: int) -> Candidate:
+def _side_weight(side: int, weights: Array, means: Array, columns: list[str]) -> float:
+    """The share of the mixture's weight on components whose chirality has `side`'s sign
+    (a chirality of 0 reads as +1, as `Hypothesis.from_label`)."""
+    w = np.asarray(weights, dtype=np.float64)
+    chirality = np.asarray(means, dtype=np.float64)[:, columns.index("chirality")]
+    on_side = (chirality >= 0) == (side > 0)
+    total = float(w.sum())
+    return float(w[on_side].sum() / total) if total > 0 else 0.5
+
+
+def _choose_side(
+    candidates: list[Candidate], network_side: int, side_weight: float = 1.0
+) -> Candidate:
     """The lowest-residual candidate, the network's hinge side unless the other side's best
-    residual is lower by more than `SIDE_MARGIN` of it (a closed door's mirror image fits
-    the depth about as well: there the network's side stands)."""
+    residual is lower by more than a margin of it: `SIDE_MARGIN` (2 w - 1) for the mixture's
+    weight w on the network's side (`_side_weight`). A closed door's mirror image fits the
+    depth about as well: there a confident network's side stands; a mixture split between
+    the sides (w near 0.5, which `artic predict` warns about) leaves the choice to the
+    residual."""
     best = min(candidates, key=lambda c: c.residual)
     same = [c for c in candidates if c.chirality == network_side]
     if best.chirality == network_side or not same:
         return best
     keep = min(same, key=lambda c: c.residual)
-    return best if best.residual < (1.0 - SIDE_MARGIN) * keep.residual else keep
+    margin = SIDE_MARGIN * float(np.clip(2.0 * side_weight - 1.0, 0.0, 1.0))
+    return best if best.residual < (1.0 - margin) * keep.residual else keep
 
 
 def _side(h: Hypothesis, chirality: int) -> Hypothesis:
