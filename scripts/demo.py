@@ -108,7 +108,14 @@ def predict_journey(out: Path) -> bool:
         shown = ", ".join(f"{v:+.3f}" for v in origin)
         print(f"  {name:10} ({shown})   {np.degrees(yaw):+8.1f}   {np.degrees(q):5.1f} deg")  # noqa: T201
     card = choose_model("mdn", "microwave", None, "--model").model
-    figures = "-" if card is None else card.figures.get("Ours pos/rot/config", "-")
+    # predict refines by default: the card's refined figures when it has them
+    figures = (
+        "-"
+        if card is None
+        else card.figures.get(
+            "Ours + refinement pos/rot/config", card.figures.get("Ours pos/rot/config", "-")
+        )
+    )
     print(  # noqa: T201
         f"  errors: axis position {errors['position_cm'][0]:.1f} cm, yaw "
         f"{errors['rotation_deg'][0]:.1f} deg, configuration {errors['configuration'][0]:.1f} "
