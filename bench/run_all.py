@@ -21,11 +21,15 @@
    same bytes on every CPU.
 7. Chapter 4 training (`--only segmenter`): a segmenter step of either head with the
    PointNet++ neighbourhoods computed in the forward pass and cached per cloud.
+8. Chapter 3's geometric refinement (`--only refine`): with the shipped microwave and
+   cabinet models on new objects of theirs (thesis_sim camera), the refinement's time
+   per image in-process (median; target 200 ms) and the wall time of an `artic predict`
+   process with and without it (target 3 s on an idle machine).
 
 The benchmarks run with the kernels pinned, as the `artic` command does.
 Prints a Markdown report and writes bench/results/latest.json.
 Usage: python bench/run_all.py [--objects 550 2200] [--scenes 24] [--repeats 5]
-       [--only backends|e2e|network|hierarchy|segmenter|planning|numerics]
+       [--only backends|e2e|network|hierarchy|segmenter|planning|numerics|refine]
 (--scenes: objects over the three categories, each rendered at 16 configurations)
 """
 
@@ -392,6 +396,60 @@ def segmenter_benchmark() -> list[dict[str, object]]:
     return [measure(20, [f"model.head={head}"]) for head in ("masks", "votes")]
 
 
+def refine_benchmark(tmp: Path, objects: int = 110) -> list[dict[str, object]]:
+    """The refinement (kinematics/refine.py) with the shipped MDNs of the one-door
+    categories on `objects` new objects each (seed 1, two images per object, the test
+    split): ms per image in-process (the network alone, and the refinement on top), and
+    the wall time of `artic predict` processes (imports, model loading, one image)."""
+    from artic.artifacts.depth_dataset import DepthDataset
+    from artic.artifacts.model_store import choose_model
+    from artic.kinematics.predict import Predictor
+
+    results: list[dict[str, object]] = []
+    for category in ("microwave", "cabinet"):
+        objects_dir, depth_dir = tmp / f"refine-objects-{category}", tmp / f"refine-{category}"
+        subprocess.run([*ARTIC, "generate-dataset", f"category={category}",
+                        "experiment=ch3_cpu", f"dataset.objects={objects}", "seed=1",
+                        f"out={objects_dir}"], check=True, capture_output=True)  # fmt: skip
+        subprocess.run([*ARTIC, "render-depth", f"dataset={objects_dir}",
+                        "render.configurations=2", f"out={depth_dir}"],
+                       check=True, capture_output=True)  # fmt: skip
+        model = choose_model("mdn", category, None, "--model").path
+        predictor = Predictor.load(model, category)
+        ds = DepthDataset.open(depth_dir)
+        images = [d for shard in ds.shards() for d, test in zip(shard.depth, shard.test,
+                                                                 strict=True) if test]  # fmt: skip
+        predictor.describe(images[0], refine=True)  # warm-up: imports, first scenes
+        network, refined = [], []
+        for depth in images:
+            t0 = time.perf_counter()
+            predictor.describe(depth)
+            t1 = time.perf_counter()
+            predictor.describe(depth, refine=True)
+            t2 = time.perf_counter()
+            network.append(t1 - t0)
+            refined.append((t2 - t1) - (t1 - t0))
+        np.save(tmp / "refine.npy", images[0])
+        (tmp / "refine-camera.json").write_text(ds.info.camera.model_dump_json())
+        walls: dict[str, list[float]] = {"--refine": [], "--no-refine": []}
+        for _ in range(3):
+            for flag, wall in walls.items():
+                t0 = time.perf_counter()
+                subprocess.run([*ARTIC, "predict", str(tmp / "refine.npy"), "--category",
+                                category, "--camera", str(tmp / "refine-camera.json"), flag],
+                               check=True, capture_output=True)  # fmt: skip
+                wall.append(time.perf_counter() - t0)
+        results.append({
+            "category": category, "images": len(images),
+            "network_ms": round(1000 * statistics.median(network), 1),
+            "refinement_ms": round(1000 * statistics.median(refined), 1),
+            "refinement_ms_p90": round(1000 * float(np.percentile(refined, 90)), 1),
+            "predict_wall_s": round(statistics.median(walls["--refine"]), 2),
+            "predict_wall_no_refine_s": round(statistics.median(walls["--no-refine"]), 2),
+        })  # fmt: skip
+    return results
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", type=int, nargs="+", default=[550, 2200])
@@ -399,7 +457,16 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument(
         "--only",
-        choices=["backends", "e2e", "network", "hierarchy", "segmenter", "planning", "numerics"],
+        choices=[
+            "backends",
+            "e2e",
+            "network",
+            "hierarchy",
+            "segmenter",
+            "planning",
+            "numerics",
+            "refine",
+        ],
         default=None,
     )
     parser.add_argument("--e2e-child", nargs=2, help=argparse.SUPPRESS)
@@ -412,7 +479,16 @@ def main() -> None:
         run = (
             {args.only}
             if args.only
-            else {"backends", "e2e", "network", "hierarchy", "segmenter", "planning", "numerics"}
+            else {
+                "backends",
+                "e2e",
+                "network",
+                "hierarchy",
+                "segmenter",
+                "planning",
+                "numerics",
+                "refine",
+            }
         )
         backends = backend_benchmark(args.scenes, args.repeats, tmp) if "backends" in run else []
         e2e = [end_to_end(n, tmp) for n in sorted(args.objects)] if "e2e" in run else []
@@ -421,6 +497,7 @@ def main() -> None:
         segmenter = segmenter_benchmark() if "segmenter" in run else []
         planning = planning_benchmark(tmp) if "planning" in run else []
         numerics = numerics_benchmark(args.repeats) if "numerics" in run else []
+        refinement = refine_benchmark(tmp) if "refine" in run else []
     report = {
         "machine": {
             "cpus": len(__import__("os").sched_getaffinity(0)),
@@ -434,6 +511,7 @@ def main() -> None:
         "segmenter": segmenter,
         "planning": planning,
         "numerics": numerics,
+        "refine": refinement,
     }
     out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -508,6 +586,15 @@ def main() -> None:
     for r in numerics:
         print(f"| {r['measure']} | {r['pinned']} | {r['native']} | {r['pinned_over_native']} "
               f"| {r['same_weights_every_run']} |")  # fmt: skip
+
+    print()
+    print("| category | test images | network ms | refinement ms (p90) | artic predict wall "
+          "| with --no-refine |")  # fmt: skip
+    print("|---|---|---|---|---|---|")
+    for r in refinement:
+        print(f"| {r['category']} | {r['images']} | {r['network_ms']} | {r['refinement_ms']} "
+              f"({r['refinement_ms_p90']}) | {r['predict_wall_s']} s "
+              f"| {r['predict_wall_no_refine_s']} s |")  # fmt: skip
 
 
 if __name__ == "__main__":
