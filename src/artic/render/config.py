@@ -21,6 +21,12 @@ class RenderConfig(Strict):
         "raycast", description="raycast: Open3D RaycastingScene; pybullet: TinyRenderer"
     )
     configurations: int = Field(16, gt=0, description="depth images per object")
+    sampling: Literal["continuous", "thesis_grid"] = Field(
+        "continuous",
+        description="continuous: a Latin hypercube over each joint's range; thesis_grid: "
+        "the 16 openings the thesis generator's images take (revolute joints, at most 16 "
+        "images per object; docs/objects.md)",
+    )
     objects_per_shard: int = Field(64, gt=0, description="objects per shard file (resume unit)")
     depth_encoding: Literal["uint16_mm", "float16_m"] = Field(
         "uint16_mm", description="how depth is stored in shards"

@@ -19,7 +19,9 @@ from numpy.typing import NDArray
 
 from artic.artifacts.depth_dataset import decode_depth
 from artic.artifacts.object_dataset import ObjectDataset
+from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
+from artic.objects.spec import ObjectSpec
 from artic.render.config import RenderDepthConfig
 
 PREVIEW_TILE_PX = 256  # small images are enlarged (whole multiples) to about this width
@@ -37,6 +39,52 @@ def encode_depth(depth: NDArray[np.float32], encoding: str) -> NDArray[np.generi
     return depth_to_uint16_mm(depth) if encoding == "uint16_mm" else depth.astype(np.float16)
 
 
+#: the 16 door openings (rad) at which the thesis generator's images are taken: its
+#: velocity servo opens every door the same way and it renders every 250 steps (the
+#: values of `q_to_idx` in its authors' evaluation code, babbatem/GeneralizingKinematics,
+#: `magic/mixture/utils.py`; negative there on one hinge side, q >= 0 in artic)
+THESIS_GRID: tuple[float, ...] = (
+    3.7259654560926e-06, 0.0619193502438947, 0.158249459384306, 0.257895820952111,
+    0.357861743606078, 0.457858459841061, 0.55785814341053, 0.657858112918615,
+    0.757858109980349, 0.857858109697211, 0.957858109669927, 1.0578581096673,
+    1.15785810966704, 1.25785810966702, 1.35785810966701, 1.457858109667,
+)  # fmt: skip
+
+
+def configurations(
+    sampling: str, rng: np.random.Generator, n: int, limits: list[tuple[float, float]]
+) -> NDArray[np.float64]:
+    """(n, dof) configurations of one object's images: `continuous`, a Latin hypercube
+    over the joint ranges (`objects.tree.latin_hypercube`); `thesis_grid`, the 16 values of
+    `THESIS_GRID` in order when n = 16, else n of them drawn without replacement and
+    sorted, every joint at the same value (the generator opens all doors together)."""
+    from artic.objects.tree import latin_hypercube
+
+    if sampling == "continuous":
+        return latin_hypercube(rng, n, limits)
+    if n > len(THESIS_GRID):
+        raise ValueError(f"render.configurations: {n} > the thesis grid's {len(THESIS_GRID)}")
+    pick = (
+        np.arange(n)
+        if n == len(THESIS_GRID)
+        else np.sort(rng.choice(len(THESIS_GRID), n, replace=False))
+    )
+    values = np.asarray(THESIS_GRID)[pick]
+    return np.repeat(values[:, None], len(limits), axis=1)
+
+
+def check_thesis_grid(n: int, spec: ObjectSpec) -> None:
+    """InputError unless `render.sampling=thesis_grid` fits: revolute joints, at most 16
+    images per object."""
+    if spec.joint_type != "revolute":
+        raise InputError(
+            f"render.sampling: thesis_grid is the generator's door openings; "
+            f"{spec.category} has {spec.joint_type} joints"
+        )
+    if n > len(THESIS_GRID):
+        raise InputError(f"render.configurations: {n} > the thesis grid's {len(THESIS_GRID)}")
+
+
 def render_objects(
     cfg: RenderDepthConfig, ds: ObjectDataset, object_ids: Sequence[int]
 ) -> dict[str, NDArray[Any]]:
@@ -44,7 +92,6 @@ def render_objects(
     `depth_clean` when stored): `render.configurations` images per object."""
     from artic.objects.categories import build
     from artic.objects.labels import image_labels, label_columns
-    from artic.objects.tree import latin_hypercube
     from artic.render.backend import make_backend
     from artic.render.noise import apply_sensor_noise
 
@@ -57,12 +104,14 @@ def render_objects(
     with make_backend(cfg.render.backend, camera, threads=1) as backend:
         for object_id in object_ids:
             spec = ds.template_spec(object_id)
+            if cfg.render.sampling == "thesis_grid":
+                check_thesis_grid(cfg.render.configurations, spec)
             obj = build(spec)
             columns = label_columns(spec.dof)
             urdf = ds.urdf(object_id) if cfg.render.backend == "pybullet" else None
             rng = np.random.default_rng([cfg.seed, object_id])
             limits = [tuple(lim) for lim in spec.joint_limits]
-            qs = latin_hypercube(rng, cfg.render.configurations, limits)  # type: ignore[arg-type]
+            qs = configurations(cfg.render.sampling, rng, cfg.render.configurations, limits)  # type: ignore[arg-type]
             for k, (q, image) in enumerate(
                 zip(qs, backend.render_many(obj, qs, urdf), strict=True)
             ):
