@@ -58,6 +58,8 @@ from artic.render.backend import RenderedImage  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 ARTIC = [sys.executable, "-m", "artic", "-q"]
 CONFIGURATIONS = 16  # images per object, as render-depth
+#: the benchmarks `--only` selects (all by default)
+PARTS = ("backends", "e2e", "network", "hierarchy", "segmenter", "planning", "numerics", "refine")
 
 
 def backend_benchmark(scenes_n: int, repeats: int, tmp: Path) -> list[dict[str, object]]:
@@ -457,16 +459,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument(
         "--only",
-        choices=[
-            "backends",
-            "e2e",
-            "network",
-            "hierarchy",
-            "segmenter",
-            "planning",
-            "numerics",
-            "refine",
-        ],
+        choices=PARTS,
         default=None,
     )
     parser.add_argument("--e2e-child", nargs=2, help=argparse.SUPPRESS)
@@ -476,20 +469,7 @@ def main() -> None:
         return
     with tempfile.TemporaryDirectory(prefix="artic-bench-") as tmp_dir:
         tmp = Path(tmp_dir)
-        run = (
-            {args.only}
-            if args.only
-            else {
-                "backends",
-                "e2e",
-                "network",
-                "hierarchy",
-                "segmenter",
-                "planning",
-                "numerics",
-                "refine",
-            }
-        )
+        run = {args.only} if args.only else set(PARTS)
         backends = backend_benchmark(args.scenes, args.repeats, tmp) if "backends" in run else []
         e2e = [end_to_end(n, tmp) for n in sorted(args.objects)] if "e2e" in run else []
         network = network_benchmark(tmp) if "network" in run else []
