@@ -809,7 +809,7 @@ def score(result: dict[str, Any], labels: dict[str, float]) -> Score:
         axis_position_cm=float(errors["position_cm"][0]),
         yaw_deg=float(errors["rotation_deg"][0]),
         configuration_deg=float(errors["configuration"][0]),
-        hinge_side_right=side == int(labels["chirality"]),
+        hinge_side_right=bool(errors["hinge_side_wrong_pct"][0] == 0),
         warned=any(w.startswith(ESTIMATE_WARNINGS) for w in warnings),
         warnings=warnings,
     )

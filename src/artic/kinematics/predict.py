@@ -42,7 +42,7 @@ from artic.kinematics.mdn import (
     sample,
 )
 from artic.kinematics.preprocess import InputPipeline
-from artic.kinematics.refine import INTERVAL_LEVEL, Refinement, refine
+from artic.kinematics.refine import INTERVAL_LEVEL, Refinement, refine, side_weight
 from artic.kinematics.targets import TargetCodec
 from artic.objects.labels import joint_column, joint_vector
 
@@ -364,9 +364,7 @@ class Predictor:
                 f"the image's camera ({_camera_text(camera)}) is not the training camera "
                 f"({_camera_text(self.camera)}): the image was reprojected into it"
             )
-        chirality = np.asarray(means)[:, col["chirality"]]
-        w = np.asarray(weights, dtype=np.float64)
-        on_side = float(w[(chirality >= 0) == (side > 0)].sum() / w.sum())
+        on_side = side_weight(side, weights, means, list(self.codec.columns))
         if on_side < SIDE_WEIGHT:
             out.append(
                 f"the mixture is split between hinge sides: {on_side:.2f} of its weight on "

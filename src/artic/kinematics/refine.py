@@ -616,7 +616,7 @@ def refine(
         status = f"fallback: no candidate inside the mixture's {INTERVAL_LEVEL:.0%} interval"
         return Refinement(estimate, False, status, residual_network, residual_network,
                           tuple(candidates))  # fmt: skip
-    best = _choose_side(inside, network.chirality, _side_weight(network.chirality, weights, means,
+    best = _choose_side(inside, network.chirality, side_weight(network.chirality, weights, means,
                                                                  columns))  # fmt: skip
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
@@ -674,7 +674,7 @@ def _candidates(
     return residual_network, candidates
 
 
-def _side_weight(side: int, weights: Array, means: Array, columns: list[str]) -> float:
+def side_weight(side: int, weights: Array, means: Array, columns: list[str]) -> float:
     """The share of the mixture's weight on components whose chirality has `side`'s sign
     (a chirality of 0 reads as +1, as `Hypothesis.from_label`)."""
     w = np.asarray(weights, dtype=np.float64)
@@ -689,7 +689,7 @@ def _choose_side(
 ) -> Candidate:
     """The lowest-residual candidate, the network's hinge side unless the other side's best
     residual is lower by more than a margin of it: `SIDE_MARGIN` (2 w - 1) for the mixture's
-    weight w on the network's side (`_side_weight`). A closed door's mirror image fits the
+    weight w on the network's side (`side_weight`). A closed door's mirror image fits the
     depth about as well: there a confident network's side stands; a mixture split between
     the sides (w near 0.5, which `artic predict` warns about) leaves the choice to the
     residual."""
