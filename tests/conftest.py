@@ -13,7 +13,7 @@ pin_numerics()
 
 import pytest  # noqa: E402
 
-from cli_runner import run_cli  # noqa: E402
+from cli_runner import run_cli, train_tiny_mdn  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
@@ -43,9 +43,4 @@ def tiny_depth(tiny_objects: Path, tmp_path_factory: pytest.TempPathFactory) -> 
 @pytest.fixture(scope="session")
 def tiny_model(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A train-mdn output (microwave, debug=tiny) on `tiny_depth`; read, never changed."""
-    out = tmp_path_factory.mktemp("mdn") / "microwave"
-    code, _, err = run_cli(
-        "train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}", f"out={out}"
-    )
-    assert code == 0, err
-    return out
+    return train_tiny_mdn(tiny_depth, tmp_path_factory.mktemp("mdn") / "microwave")

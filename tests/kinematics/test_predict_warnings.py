@@ -27,7 +27,7 @@ from artic.kinematics.predict import (
     Predictor,
     TrainingDomain,
 )
-from cli_runner import run_cli
+from cli_runner import run_cli, train_tiny_mdn
 
 
 @pytest.fixture(scope="module")
@@ -48,12 +48,7 @@ def tiny_depth(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def tiny_model(tiny_depth: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A debug=tiny microwave MDN on the one-sided `tiny_depth`."""
-    out = tmp_path_factory.mktemp("one_side_mdn") / "microwave"
-    code, _, err = run_cli(
-        "train-mdn", "debug=tiny", "category=microwave", f"depth={tiny_depth}", f"out={out}"
-    )
-    assert code == 0, err
-    return out
+    return train_tiny_mdn(tiny_depth, tmp_path_factory.mktemp("one_side_mdn") / "microwave")
 
 
 @pytest.fixture(scope="module")
