@@ -47,6 +47,7 @@ network's estimate with a status saying so.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -232,13 +233,12 @@ class PosedRenderer:
     """Renders one object geometry (depth, width, height, chirality) at any base pose
     and q with the raycast backend, building the object and its ray-casting scenes once.
 
-    The raycast backend keeps its scenes for the last object it saw (by identity) and
-    builds them in each rigid group's own frame, independent of the base pose; building
-    them costs ~10-30 ms an object here against ~1 ms for an image. So this object's
-    `base_pose` is replaced (a new array each time, never changed in place: the backend
-    compares the body's new pose with the last one it cast) before each render; the object
-    is this class's own and never leaves it. A test checks the images equal those of a
-    freshly built object at the same pose."""
+    The raycast backend keeps its scenes for the last geometry it saw (links and joints
+    by identity), built in each rigid group's own frame, independent of the base pose;
+    building them costs ~10-30 ms an object here against ~1 ms for an image. So each
+    render is of `dataclasses.replace(object, base_pose=...)`, which shares the links and
+    reuses the scenes. A test checks the images equal those of a freshly built object at
+    the same pose."""
 
     def __init__(self, hypothesis: Hypothesis, category: str, parts: PartsConfig,
                  camera: CameraIntrinsics) -> None:  # fmt: skip
@@ -264,10 +264,10 @@ class PosedRenderer:
         if not self.fits(h):
             raise ValueError("PosedRenderer: another geometry or hinge side")
         pose = h.pose_matrix()
-        object.__setattr__(self.object, "base_pose", pose)
+        posed = dataclasses.replace(self.object, base_pose=pose)
         # the door link's pose: the hinge frame turned by q about its axis (0, 0, c)
         door = pose @ self.hinge @ make_transform(rot_z(self.chirality * h.q))
-        return self.backend.render(self.object, np.array([h.q])), door
+        return self.backend.render(posed, np.array([h.q])), door
 
     def label(self, h: Hypothesis, category: str, columns: list[str]) -> Array:
         """The label vector (L,) of `h` in `columns` order, every column consistent with
@@ -276,8 +276,8 @@ class PosedRenderer:
 
         if not self.fits(h):
             raise ValueError("PosedRenderer: another geometry or hinge side")
-        object.__setattr__(self.object, "base_pose", h.pose_matrix())
-        labels = image_labels(h.spec(category, self.parts), self.object, np.array([h.q]))
+        posed = dataclasses.replace(self.object, base_pose=h.pose_matrix())
+        labels = image_labels(h.spec(category, self.parts), posed, np.array([h.q]))
         return np.array([labels[c] for c in columns], dtype=np.float64)
 
     def close(self) -> None:

@@ -67,7 +67,10 @@ def rigid_groups(obj: ArticulatedObject) -> list[list[int]]:
 
 @register_backend("raycast")
 class RaycastBackend(BackendBase):
-    """Open3D ray casting; scenes cached for the most recent object."""
+    """Open3D ray casting; scenes cached for the most recent object's geometry (its
+    links and joints, by identity: the scenes are built in each rigid group's own frame,
+    so the same object at another `base_pose`, `dataclasses.replace(obj, base_pose=...)`,
+    reuses them)."""
 
     def __init__(self, camera: CameraIntrinsics, threads: int = 1) -> None:
         self.camera = camera
@@ -77,7 +80,8 @@ class RaycastBackend(BackendBase):
         self._groups: list[_Group] = []
 
     def _scenes(self, obj: ArticulatedObject) -> list[_Group]:
-        if self._object is obj:
+        last = self._object
+        if last is not None and last.links is obj.links and last.joints is obj.joints:
             return self._groups
         rest = obj.link_poses(np.zeros(obj.dof))
         groups = []
