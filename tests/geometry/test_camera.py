@@ -59,8 +59,29 @@ def test_reproject_into_the_same_camera_is_identity_and_halves_with_focal():
     small = reproject(depth, cam, half)
     assert small.shape == (24, 32)
     assert set(np.unique(small)) == {0.0, 1.5, 2.0}
-    assert small[(15 + 20) // 4, (25 + 30) // 4] == 1.5, "nearest point wins"
+    assert small[(15 + 20) // 4, (25 + 30) // 4] == 1.5, "the patch's ray keeps its depth"
     assert reproject(np.zeros((48, 64), np.float32), cam, half).max() == 0
+
+
+def test_reproject_keeps_a_noisy_surface_in_place_and_fills_a_finer_camera():
+    """Reducing a 640x480 image (f = 525) into 192x108 (f = 105.4) must not move a noisy
+    surface: each target pixel is one measurement, not the nearest of ~25. Enlarging a
+    coarse image leaves no hole inside its view."""
+    from artic.geometry.camera import reproject
+
+    fine = CameraIntrinsics(fx=525, fy=525, cx=319.5, cy=239.5, width=640, height=480)
+    coarse = CameraIntrinsics(fx=105.4, fy=105.4, cx=95.5, cy=53.5, width=192, height=108)
+    rng = np.random.default_rng(0)
+    noisy = (2.0 + rng.normal(0.0, 0.005, (480, 640))).astype(np.float32)
+    small = reproject(noisy, fine, coarse)
+    seen = small[small > 0]
+    assert seen.size > 0.4 * small.size  # the fine camera's narrower view, in the middle
+    assert abs(float(np.mean(seen)) - 2.0) < 0.001  # a z-buffer put it ~1 cm nearer
+    assert abs(float(np.std(seen)) - 0.005) < 0.001  # one measurement's noise per pixel
+    noisy[100:110, 200:210] = np.nan  # no return: stays 0
+    assert np.isfinite(reproject(noisy, fine, fine)).all()
+    big = reproject(np.full((108, 192), 2.0, np.float32), coarse, fine)
+    assert (big == 2.0).all()  # the coarse camera sees all of the fine one's view
 
 
 def test_camera_configs_load_and_thesis_sim_has_the_generators_field_of_view():

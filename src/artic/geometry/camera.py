@@ -228,14 +228,33 @@ def reproject(
 ) -> NDArray[np.float32]:
     """Depth seen by `source` -> the depth image `target` sees from the same pose.
 
-    Every valid pixel is back-projected to a point and projected into `target`; where
-    several points land on one pixel the nearest wins (a z-buffer), and target pixels no
-    point lands on stay 0. Both cameras share the body frame (x forward, z up).
+    Both cameras share the body frame (x forward, z up) and the optical centre, so a ray
+    keeps its depth from one image to the other: each target pixel takes the depth of the
+    source pixel its centre ray falls in (nearest neighbour along rays; 0 outside the
+    source's view or where the source has no return). That is what a renderer does, one
+    ray per pixel, so a reduced image has the statistics of one rendered in `target`: one
+    measurement per pixel, no mixing across an edge. (A z-buffer of every source point,
+    the nearest winning, moved a noisy surface towards the camera when reducing: the
+    least of the ~25 noisy samples of a 640x480 image that fall in one pixel of a 192x108
+    one lies about two standard deviations in front of the surface.)
     """
-    points = source.back_project(np.asarray(depth))
+    image = np.asarray(depth)
+    if image.shape != (source.height, source.width):
+        raise ValueError(
+            f"depth image is {image.shape[1]}x{image.shape[0]}, "
+            f"camera is {source.width}x{source.height}"
+        )
+    # the source pixel of each target column and row; floor(x + 1/2): no ties to even
+    u = np.floor(
+        source.cx + source.fx * (np.arange(target.width) - target.cx) / target.fx + 0.5
+    ).astype(np.int64)
+    v = np.floor(
+        source.cy + source.fy * (np.arange(target.height) - target.cy) / target.fy + 0.5
+    ).astype(np.int64)
+    cols, rows = (u >= 0) & (u < source.width), (v >= 0) & (v < source.height)
     out = np.zeros((target.height, target.width), dtype=np.float32)
-    if len(points) == 0:
-        return out
+    out[np.ix_(rows, cols)] = image[np.ix_(v[rows], u[cols])]
+    return np.where(np.isfinite(out) & (out > 0), out, 0).astype(np.float32)
     uv = np.rint(target.project(points)).astype(np.int64)
     inside = (uv[:, 0] >= 0) & (uv[:, 0] < target.width) & (uv[:, 1] >= 0)
     inside &= uv[:, 1] < target.height
