@@ -21,12 +21,15 @@ import pytest
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics.refine import (
+    HANDLE_Z,
     SIDE_MARGIN,
     Candidate,
     Hypothesis,
     PosedRenderer,
     _choose_side,
     depth_residual,
+    handle_evidence,
+    handle_side,
     refine,
     refine_hypothesis,
 )
@@ -270,3 +273,58 @@ def test_the_other_hinge_side_needs_a_margin_only_from_a_confident_network():
     assert _choose_side([ours, other], 1, side_weight=0.5) is other
     assert _choose_side([ours, other], 1, side_weight=0.55) is other  # margin 0.025
     assert _choose_side([ours, candidate(-1, 0.041)], 1, side_weight=0.5) is ours
+
+
+#: the camera of issue 24's second generator (a finer one than the model's)
+FINE = CameraIntrinsics(fx=525.0, fy=525.0, cx=319.5, cy=239.5, width=640, height=480)
+
+
+def _fine_image(h: Hypothesis, category: str, parts: PartsConfig = PARTS) -> np.ndarray:
+    with make_backend("raycast", FINE) as backend:
+        clean = backend.render(build(h.spec(category, parts)), np.array([h.q])).depth
+    return apply_sensor_noise(clean, SensorNoiseConfig(), np.random.default_rng(0), FINE.fx)
+
+
+@pytest.mark.parametrize("chirality", [1, -1])
+def test_the_handle_names_the_hinge_side_of_a_closed_door(chirality):
+    """A closed cabinet door (q = 0.02) under the sensor noise, 1.4 m away, in the fine
+    camera: the hypothesis on the true side sees its handle on the free half of the door,
+    its mirror image on the hinge half; `handle_side` picks the true side whichever
+    candidate has the lower residual. Without a handle (a bar 5 mm proud, under the
+    test's threshold) it abstains."""
+    truth = _truth("cabinet", chirality, 0.02, yaw=0.15)
+    observed = _fine_image(truth, "cabinet")
+    right = handle_evidence(truth, "cabinet", PARTS, observed, FINE)
+    wrong = handle_evidence(truth.mirrored(), "cabinet", PARTS, observed, FINE)
+    assert right >= HANDLE_Z and wrong <= -HANDLE_Z, (right, wrong)
+    candidates = [
+        Candidate(0, 0.5, -chirality, 0.010, True, _label(truth.mirrored(), "cabinet")),
+        Candidate(0, 0.5, chirality, 0.012, True, _label(truth, "cabinet")),
+    ]
+    assert handle_side(candidates, COLUMNS, "cabinet", PARTS, observed, FINE) == chirality
+    flat = PartsConfig(handle_standoff=0.001, handle_thickness=0.004)
+    no_handle = _fine_image(truth, "cabinet", flat)
+    assert abs(handle_evidence(truth, "cabinet", flat, no_handle, FINE)) < HANDLE_Z
+    assert handle_side(candidates, COLUMNS, "cabinet", flat, no_handle, FINE) is None
+
+
+def test_refinement_reads_a_closed_doors_side_off_the_image_as_taken():
+    """The network says +1 with confidence for a closed door hinged on -1 with a small
+    knob-like handle (5 x 1.5 cm, 3 cm proud) 2.3 m away: in the model's coarse camera,
+    where the handle is two pixels, the residuals keep +1; given the image in the fine camera it
+    was taken with, the handle turns it to -1."""
+    from artic.geometry.camera import reproject
+
+    knob = PartsConfig(handle_length=0.05, handle_standoff=0.015)
+    near = _truth("cabinet", -1, 0.02, yaw=0.15)
+    truth = near.with_pose(2.3, near.y, near.z, near.yaw, near.q)
+    fine = _fine_image(truth, "cabinet", knob)
+    coarse = reproject(fine, FINE, CAMERA)
+    estimate = _label(truth.mirrored(), "cabinet")
+    args = (CAMERA, "cabinet", COLUMNS, estimate, np.array([1.0]), estimate[None],
+            *_wide(estimate))  # fmt: skip
+    alone = refine(coarse, *args, parts=knob)
+    assert alone.label[COLUMNS.index("chirality")] == 1, alone.status
+    detailed = refine(coarse, *args, parts=knob, detail=(fine, FINE))
+    assert detailed.refined and "handle" in detailed.status, detailed.status
+    assert detailed.label[COLUMNS.index("chirality")] == -1

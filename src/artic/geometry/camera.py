@@ -255,10 +255,3 @@ def reproject(
     out = np.zeros((target.height, target.width), dtype=np.float32)
     out[np.ix_(rows, cols)] = image[np.ix_(v[rows], u[cols])]
     return np.where(np.isfinite(out) & (out > 0), out, 0).astype(np.float32)
-    uv = np.rint(target.project(points)).astype(np.int64)
-    inside = (uv[:, 0] >= 0) & (uv[:, 0] < target.width) & (uv[:, 1] >= 0)
-    inside &= uv[:, 1] < target.height
-    u, v, z = uv[inside, 0], uv[inside, 1], points[inside, 0]
-    order = np.argsort(-z)  # far first, so the nearest point is written last
-    out[v[order], u[order]] = z[order]
-    return out

@@ -235,17 +235,19 @@ class Predictor:
         depth: NDArray[np.floating],
         mask: NDArray[np.bool_] | None,
         label: NDArray[np.float64],
+        detail: tuple[NDArray[np.floating], CameraIntrinsics] | None = None,
     ) -> Refinement:
         """Test-time geometric refinement of `label` (L,) against the image
         (kinematics/refine.py) from the image's mixture's components and its central
-        `INTERVAL_LEVEL` interval."""
+        `INTERVAL_LEVEL` interval; `detail`: the image in the camera that took it (masked),
+        when it was reprojected into the model's."""
         observed = np.where(mask, depth, 0) if mask is not None else depth
         lower, upper = marginal_interval(mix, INTERVAL_LEVEL)
         return refine(
             np.asarray(observed, dtype=np.float32), self.camera, self.category,
             list(self.codec.columns), label, mix.log_pi[0].exp().double().numpy(),
             self.codec.decode(mix.mu[0].numpy()), self.codec.decode(lower[0].numpy()),
-            self.codec.decode(upper[0].numpy()),
+            self.codec.decode(upper[0].numpy()), detail=detail,
         )  # fmt: skip
 
     def _origin(self, joint: int) -> list[int]:
@@ -275,15 +277,16 @@ class Predictor:
         samples: int = 0,
         seed: int = 0,
         refine: bool = False,
+        detail: tuple[NDArray[np.floating], CameraIntrinsics] | None = None,
     ) -> dict[str, Any]:
         """The JSON `artic predict` prints (see docs/kinematics.md). With `refine`, the
-        estimate is the geometric refinement's (`refine`), and `refinement` says what it
-        did; without, `refinement` says it was off."""
+        estimate is the geometric refinement's (`refine`, `detail` as there), and
+        `refinement` says what it did; without, `refinement` says it was off."""
         mix = self.mixture(depth, mask)
         label = self._estimate(mix, depth, mask, estimator)
         refinement: dict[str, Any] = {"status": "off (--no-refine)", "refined": False}
         if refine:
-            result = self.refine(mix, depth, mask, label)
+            result = self.refine(mix, depth, mask, label, detail)
             label, refinement = result.label, result.as_json()
         col = {c: i for i, c in enumerate(self.codec.columns)}
         unit = "rad" if self.joint_type == "revolute" else "m"
@@ -420,12 +423,14 @@ def predict_image(
     reprojected = cam != predictor.camera
     if object_mask is not None:
         depth = np.where(object_mask, depth, 0).astype(np.float32)
+    detail = None
     if reprojected:
+        detail = (depth, cam)  # the refinement's handle test reads the image as taken
         depth = reproject(depth, cam, predictor.camera)
         if not (depth > 0).any():
             raise InputError(f"{image}: no pixel lands inside the training camera's view")
     t1 = time.perf_counter()
-    result = predictor.describe(depth, None, estimator, samples, seed, refine)  # type: ignore[arg-type]
+    result = predictor.describe(depth, None, estimator, samples, seed, refine, detail)  # type: ignore[arg-type]
     t2 = time.perf_counter()
     label = np.array([result["estimate"][c] for c in predictor.codec.columns])
     mixture = result["mixture"]

@@ -41,6 +41,20 @@ component mean has, as with a model trained on one side, has no interval there a
 judged by its residual alone), or when the chosen candidate's residual is not below the
 network's own: the returned estimate's residual is never larger than the network's.
 
+On a nearly closed door (`HANDLE_Q_MAX`) the handle then has the last word on the hinge
+side (`handle_side`): a door is pulled
+open at its free edge, so its handle (a knob or bar standing proud of the door's front)
+lies in the half of the door away from the hinge. For the best candidate of each side, the
+observed points of the image in its own camera (`detail`: `artic predict` passes the image
+before it was reduced into the model's camera, where a knob is a few pixels instead of
+one) that lie inside the candidate's door outline and stand proud of its front plane are
+counted on the free half and on the hinge half; a side whose free half holds more of them
+by `HANDLE_Z` binomial standard deviations (and whose rival's does not) is chosen, with its
+lowest-residual candidate. A door with no handle, or one too far away for its handle to
+stand out of the sensor's noise, leaves the choice to the residuals. On a nearly closed
+door the two sides' renders differ by little more than the handle, which the residual over
+the whole object hardly weighs (docs/reproduction.md, issue 24).
+
 Supported: the one-door, vertical-hinge categories (`SUPPORTED`); others return the
 network's estimate with a status saying so.
 """
@@ -105,6 +119,23 @@ EDGE_ROWS = 3
 SIDE_MARGIN = 0.25
 #: fewer observed pixels than this: not refined
 MIN_OBSERVED = 50
+#: the handle test (`handle_evidence`): observed points within the door's outline, inset
+#: by `HANDLE_EDGE` (m), standing proud of its front plane by more than
+#: max(HANDLE_PROUD[0], HANDLE_NOISE x the plane's robust noise) and less than
+#: HANDLE_PROUD[1] (m) are the handle's
+HANDLE_EDGE = 0.02
+HANDLE_PROUD = (0.012, 0.08)
+HANDLE_NOISE = 2.5
+#: the test runs when the chosen candidate's door is open less than this (rad): on a door
+#: open further the residuals tell the sides apart, and a candidate on the wrong side
+#: puts the door's outline where other surfaces stand proud of it
+HANDLE_Q_MAX = math.radians(10.0)
+#: the door's plane is where the hypothesis puts it when this share of its outline's
+#: points lie within the threshold of it; else the test abstains
+HANDLE_PLANE_SHARE = 0.5
+#: the test names a hinge side when the handle points' excess on the free half of the
+#: door over the hinge half is this many binomial standard deviations
+HANDLE_Z = 3.0
 
 Array = NDArray[np.float64]
 
@@ -571,13 +602,16 @@ def refine(
     lower: Array,
     upper: Array,
     parts: PartsConfig | None = None,
+    detail: tuple[NDArray[np.floating], CameraIntrinsics] | None = None,
 ) -> Refinement:
     """Refine the network's `estimate` (L,) of the depth image `observed` (H, W) metres in
     `camera` (the model's camera; 0 = no return), given the mixture's `weights` (m,),
     component `means` (m, L) and central interval [`lower`, `upper`] (L,) in label units
     (`INTERVAL_LEVEL`), for an object of `category` built with `parts` (default: the
-    categories' defaults). Never raises on an image: a refinement that cannot run returns
-    the network's estimate and says why (module docstring)."""
+    categories' defaults). `detail`: the same view in the camera it was taken with (depth,
+    camera), for the handle test (`handle_side`); default `observed` in `camera`. Never
+    raises on an image: a refinement that cannot run returns the network's estimate and
+    says why (module docstring)."""
     parts = parts or PartsConfig()
     estimate = np.asarray(estimate, dtype=np.float64)
     none: tuple[Candidate, ...] = ()
@@ -618,11 +652,19 @@ def refine(
                           tuple(candidates))  # fmt: skip
     best = _choose_side(inside, network.chirality, side_weight(network.chirality, weights, means,
                                                                  columns))  # fmt: skip
+    image, view = detail if detail is not None else (observed, camera)
+    handle = None
+    if Hypothesis.from_label(best.label, columns).q < HANDLE_Q_MAX:
+        handle = handle_side(inside, columns, category, parts, image, view)
+    if handle is not None and handle != best.chirality:
+        best = min((c for c in inside if c.chirality == handle), key=lambda c: c.residual)
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
         return Refinement(estimate, False, status, residual_network, residual_network,
                           tuple(candidates))  # fmt: skip
     status = f"refined: component {best.component}, chirality {best.chirality:+d}"
+    if handle is not None:
+        status += " (the handle's side)"
     return Refinement(best.label, True, status, residual_network, best.residual, tuple(candidates))
 
 
@@ -700,6 +742,66 @@ def _choose_side(
     keep = min(same, key=lambda c: c.residual)
     margin = SIDE_MARGIN * float(np.clip(2.0 * side_weight - 1.0, 0.0, 1.0))
     return best if best.residual < (1.0 - margin) * keep.residual else keep
+
+
+def handle_evidence(
+    h: Hypothesis,
+    category: str,
+    parts: PartsConfig,
+    depth: NDArray[np.floating],
+    camera: CameraIntrinsics,
+) -> float:
+    """How strongly the image says `h`'s door has its handle at its free edge: the excess
+    of handle points (module docstring, `HANDLE_*`) on the free half of `h`'s door over
+    its hinge half, in binomial standard deviations, (n_free - n_hinge) / sqrt(n_free +
+    n_hinge + 1); negative when they lie on the hinge half, 0 when the door's plane is not
+    where `h` puts it. `depth` (H, W) metres in `camera`."""
+    from artic.objects.categories import build
+
+    obj = build(h.spec(category, parts))
+    joint = obj.movable_joints[0]
+    door = next(link for link in obj.links if link.name == joint.child)
+    lo, hi = door.mesh.vertices.min(axis=0), door.mesh.vertices.max(axis=0)
+    pose = h.pose_matrix() @ joint.origin @ make_transform(rot_z(h.chirality * h.q))
+    points = camera.back_project(np.where(np.isfinite(depth), depth, 0))
+    local = (points - pose[:3, 3]) @ pose[:3, :3]  # the door's frame: hinge at y = 0
+    inside = (local[:, 1] > lo[1] + HANDLE_EDGE) & (local[:, 1] < hi[1] - HANDLE_EDGE)
+    inside &= (local[:, 2] > lo[2] + HANDLE_EDGE) & (local[:, 2] < hi[2] - HANDLE_EDGE)
+    offset = local[inside, 0]  # towards the camera is -x
+    near = np.abs(offset - lo[0]) < HANDLE_PROUD[1]
+    if near.sum() < MIN_FACE_POINTS:
+        return 0.0
+    offset = offset - float(np.median(offset[near]))  # the front plane as the image has it
+    noise = 1.4826 * float(np.median(np.abs(offset[near])))
+    threshold = max(HANDLE_PROUD[0], HANDLE_NOISE * noise)
+    if float(np.mean(np.abs(offset) < threshold)) < HANDLE_PLANE_SHARE:
+        return 0.0
+    proud = (offset < -threshold) & (offset > -HANDLE_PROUD[1])
+    free = np.abs(local[inside, 1]) > (hi[1] - lo[1]) / 2
+    n_free, n_hinge = int((proud & free).sum()), int((proud & ~free).sum())
+    return (n_free - n_hinge) / math.sqrt(n_free + n_hinge + 1)
+
+
+def handle_side(
+    candidates: list[Candidate],
+    columns: list[str],
+    category: str,
+    parts: PartsConfig,
+    depth: NDArray[np.floating],
+    camera: CameraIntrinsics,
+) -> int | None:
+    """The hinge side the handle names (module docstring): of the lowest-residual
+    candidate of each side, the one whose `handle_evidence` reaches `HANDLE_Z` while its
+    rival's does not; None when neither or both do."""
+    evidence: dict[int, float] = {}
+    for side in (1, -1):
+        same = [c for c in candidates if c.chirality == side]
+        if same:
+            best = min(same, key=lambda c: c.residual)
+            h = Hypothesis.from_label(best.label, columns)
+            evidence[side] = handle_evidence(h, category, parts, depth, camera)
+    named = [side for side, z in evidence.items() if z >= HANDLE_Z]
+    return named[0] if len(named) == 1 else None
 
 
 def _side(h: Hypothesis, chirality: int) -> Hypothesis:
