@@ -21,14 +21,14 @@ import pytest
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics.refine import (
-    HANDLE_Z,
+    HANDLE_FREE,
     SIDE_MARGIN,
     Candidate,
     Hypothesis,
     PosedRenderer,
     _choose_side,
     depth_residual,
-    handle_evidence,
+    handle_position,
     handle_side,
     refine,
     refine_hypothesis,
@@ -288,15 +288,16 @@ def _fine_image(h: Hypothesis, category: str, parts: PartsConfig = PARTS) -> np.
 @pytest.mark.parametrize("chirality", [1, -1])
 def test_the_handle_names_the_hinge_side_of_a_closed_door(chirality):
     """A closed cabinet door (q = 0.02) under the sensor noise, 1.4 m away, in the fine
-    camera: the hypothesis on the true side sees its handle on the free half of the door,
-    its mirror image on the hinge half; `handle_side` picks the true side whichever
-    candidate has the lower residual. Without a handle (a bar 5 mm proud, under the
-    test's threshold) it abstains."""
+    camera: the hypothesis on the true side finds its handle near the door's free edge,
+    its mirror image near the hinge; `handle_side` picks the true side whichever candidate
+    has the lower residual. Without a handle (a bar 5 mm proud, under the test's
+    threshold) it abstains."""
     truth = _truth("cabinet", chirality, 0.02, yaw=0.15)
     observed = _fine_image(truth, "cabinet")
-    right = handle_evidence(truth, "cabinet", PARTS, observed, FINE)
-    wrong = handle_evidence(truth.mirrored(), "cabinet", PARTS, observed, FINE)
-    assert right >= HANDLE_Z and wrong <= -HANDLE_Z, (right, wrong)
+    right = handle_position(truth, "cabinet", PARTS, observed, FINE)
+    wrong = handle_position(truth.mirrored(), "cabinet", PARTS, observed, FINE)
+    assert right is not None and right >= HANDLE_FREE, right
+    assert wrong is not None and wrong <= 1 - HANDLE_FREE, wrong
     candidates = [
         Candidate(0, 0.5, -chirality, 0.010, True, _label(truth.mirrored(), "cabinet")),
         Candidate(0, 0.5, chirality, 0.012, True, _label(truth, "cabinet")),
@@ -304,7 +305,7 @@ def test_the_handle_names_the_hinge_side_of_a_closed_door(chirality):
     assert handle_side(candidates, COLUMNS, "cabinet", PARTS, observed, FINE) == chirality
     flat = PartsConfig(handle_standoff=0.001, handle_thickness=0.004)
     no_handle = _fine_image(truth, "cabinet", flat)
-    assert abs(handle_evidence(truth, "cabinet", flat, no_handle, FINE)) < HANDLE_Z
+    assert handle_position(truth, "cabinet", flat, no_handle, FINE) is None
     assert handle_side(candidates, COLUMNS, "cabinet", flat, no_handle, FINE) is None
 
 

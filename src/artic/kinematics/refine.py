@@ -41,19 +41,20 @@ component mean has, as with a model trained on one side, has no interval there a
 judged by its residual alone), or when the chosen candidate's residual is not below the
 network's own: the returned estimate's residual is never larger than the network's.
 
-On a nearly closed door (`HANDLE_Q_MAX`) the handle then has the last word on the hinge
-side (`handle_side`): a door is pulled
-open at its free edge, so its handle (a knob or bar standing proud of the door's front)
-lies in the half of the door away from the hinge. For the best candidate of each side, the
-observed points of the image in its own camera (`detail`: `artic predict` passes the image
-before it was reduced into the model's camera, where a knob is a few pixels instead of
-one) that lie inside the candidate's door outline and stand proud of its front plane are
-counted on the free half and on the hinge half; a side whose free half holds more of them
-by `HANDLE_Z` binomial standard deviations (and whose rival's does not) is chosen, with its
-lowest-residual candidate. A door with no handle, or one too far away for its handle to
-stand out of the sensor's noise, leaves the choice to the residuals. On a nearly closed
-door the two sides' renders differ by little more than the handle, which the residual over
-the whole object hardly weighs (docs/reproduction.md, issue 24).
+On a nearly closed door the handle then has the last word on the hinge side
+(`handle_side`): a door is pulled open at its free edge, so its handle (a knob or bar
+standing proud of the door's front) lies near the edge away from the hinge. For the best
+candidate of each side whose door is open less than `HANDLE_Q_MAX` (and whose residual is
+near the best), the pixels of the image in its own camera (`detail`: `artic predict`
+passes the image before it was reduced into the model's camera, where a knob is a pixel or
+two) that lie inside the candidate's door outline and stand proud of its front plane are
+opened (isolated noise goes) and grouped into blobs; the largest compact one is the handle
+(`handle_position`). A candidate with the handle in its door's free part votes for its
+side, one with it by the hinge for the other side; a side every vote is for is chosen,
+with its lowest-residual candidate. A door with no handle, or one too far away for its
+handle to stand out of the sensor's noise, leaves the choice to the residuals. On a nearly
+closed door the two sides' renders differ by little more than the handle, which the
+residual over the whole object hardly weighs (docs/reproduction.md, issue 24).
 
 Supported: the one-door, vertical-hinge categories (`SUPPORTED`); others return the
 network's estimate with a status saying so.
@@ -119,23 +120,30 @@ EDGE_ROWS = 3
 SIDE_MARGIN = 0.25
 #: fewer observed pixels than this: not refined
 MIN_OBSERVED = 50
-#: the handle test (`handle_evidence`): observed points within the door's outline, inset
-#: by `HANDLE_EDGE` (m), standing proud of its front plane by more than
-#: max(HANDLE_PROUD[0], HANDLE_NOISE x the plane's robust noise) and less than
-#: HANDLE_PROUD[1] (m) are the handle's
-HANDLE_EDGE = 0.02
+#: the handle test (`handle_position`): pixels within the door's outline, widened across
+#: the door by `HANDLE_BEYOND` and inset up it by `HANDLE_EDGE` (m), standing proud of
+#: its front plane by more than max(HANDLE_PROUD[0], HANDLE_NOISE x the plane's robust
+#: noise) and less than HANDLE_PROUD[1] (m); a blob of at least `HANDLE_PIXELS` of them
+#: (after an opening), at most `HANDLE_EXTENT` (m) across the door, is a handle
+HANDLE_EDGE = 0.01
+HANDLE_BEYOND = 0.06
 HANDLE_PROUD = (0.012, 0.08)
 HANDLE_NOISE = 2.5
-#: the test runs when the chosen candidate's door is open less than this (rad): on a door
+HANDLE_PIXELS = 6
+HANDLE_EXTENT = 0.06
+#: a candidate votes in the test when its door is open less than this (rad): on a door
 #: open further the residuals tell the sides apart, and a candidate on the wrong side
 #: puts the door's outline where other surfaces stand proud of it
 HANDLE_Q_MAX = math.radians(10.0)
+#: nor when its residual is more than this many times the best candidate's: a door open
+#: far, seen by a candidate that has it closed, has its edge standing proud like a handle
+HANDLE_RESIDUAL = 1.6
 #: the door's plane is where the hypothesis puts it when this share of its outline's
 #: points lie within the threshold of it; else the test abstains
 HANDLE_PLANE_SHARE = 0.5
-#: the test names a hinge side when the handle points' excess on the free half of the
-#: door over the hinge half is this many binomial standard deviations
-HANDLE_Z = 3.0
+#: a handle this far across the door from the hinge (as a share of its width) or further
+#: is at the free edge
+HANDLE_FREE = 0.65
 
 Array = NDArray[np.float64]
 
@@ -653,9 +661,7 @@ def refine(
     best = _choose_side(inside, network.chirality, side_weight(network.chirality, weights, means,
                                                                  columns))  # fmt: skip
     image, view = detail if detail is not None else (observed, camera)
-    handle = None
-    if Hypothesis.from_label(best.label, columns).q < HANDLE_Q_MAX:
-        handle = handle_side(inside, columns, category, parts, image, view)
+    handle = handle_side(inside, columns, category, parts, image, view)
     if handle is not None and handle != best.chirality:
         best = min((c for c in inside if c.chirality == handle), key=lambda c: c.residual)
     if not best.residual < residual_network:
@@ -744,18 +750,23 @@ def _choose_side(
     return best if best.residual < (1.0 - margin) * keep.residual else keep
 
 
-def handle_evidence(
+def handle_position(
     h: Hypothesis,
     category: str,
     parts: PartsConfig,
     depth: NDArray[np.floating],
     camera: CameraIntrinsics,
-) -> float:
-    """How strongly the image says `h`'s door has its handle at its free edge: the excess
-    of handle points (module docstring, `HANDLE_*`) on the free half of `h`'s door over
-    its hinge half, in binomial standard deviations, (n_free - n_hinge) / sqrt(n_free +
-    n_hinge + 1); negative when they lie on the hinge half, 0 when the door's plane is not
-    where `h` puts it. `depth` (H, W) metres in `camera`."""
+) -> float | None:
+    """Where the image shows the handle of `h`'s door: the position of its centre across
+    the door from the hinge (0) to the free edge (1; beyond: below 0 or above 1), or None
+    when no handle stands out (module docstring, `HANDLE_*`): the pixels inside the door's
+    (widened) outline standing proud of
+    its front plane (as the image has it: their median) by more than the threshold, after
+    a 2 x 2 binary opening (isolated noise and one-pixel edge slivers go), grouped into
+    connected blobs; the largest blob at most `HANDLE_EXTENT` across the door with at least
+    `HANDLE_PIXELS` pixels is the handle. `depth` (H, W) metres in `camera`."""
+    from scipy import ndimage
+
     from artic.objects.categories import build
 
     obj = build(h.spec(category, parts))
@@ -763,23 +774,38 @@ def handle_evidence(
     door = next(link for link in obj.links if link.name == joint.child)
     lo, hi = door.mesh.vertices.min(axis=0), door.mesh.vertices.max(axis=0)
     pose = h.pose_matrix() @ joint.origin @ make_transform(rot_z(h.chirality * h.q))
-    points = camera.back_project(np.where(np.isfinite(depth), depth, 0))
-    local = (points - pose[:3, 3]) @ pose[:3, :3]  # the door's frame: hinge at y = 0
-    inside = (local[:, 1] > lo[1] + HANDLE_EDGE) & (local[:, 1] < hi[1] - HANDLE_EDGE)
+    image = np.where(np.isfinite(depth), depth, 0)
+    rows, cols = np.nonzero(image > 0)
+    local = (camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3]  # door frame: hinge y = 0
+    # across the door, its outline widened by HANDLE_BEYOND (a door wider than the
+    # hypothesis' has its handle beyond it); up it, inset by HANDLE_EDGE
+    inside = (local[:, 1] > lo[1] - HANDLE_BEYOND) & (local[:, 1] < hi[1] + HANDLE_BEYOND)
     inside &= (local[:, 2] > lo[2] + HANDLE_EDGE) & (local[:, 2] < hi[2] - HANDLE_EDGE)
-    offset = local[inside, 0]  # towards the camera is -x
-    near = np.abs(offset - lo[0]) < HANDLE_PROUD[1]
+    near = inside & (np.abs(local[:, 0] - lo[0]) < HANDLE_PROUD[1])
     if near.sum() < MIN_FACE_POINTS:
-        return 0.0
-    offset = offset - float(np.median(offset[near]))  # the front plane as the image has it
+        return None
+    offset = local[:, 0] - float(np.median(local[near, 0]))  # towards the camera is -x
     noise = 1.4826 * float(np.median(np.abs(offset[near])))
     threshold = max(HANDLE_PROUD[0], HANDLE_NOISE * noise)
-    if float(np.mean(np.abs(offset) < threshold)) < HANDLE_PLANE_SHARE:
-        return 0.0
-    proud = (offset < -threshold) & (offset > -HANDLE_PROUD[1])
-    free = np.abs(local[inside, 1]) > (hi[1] - lo[1]) / 2
-    n_free, n_hinge = int((proud & free).sum()), int((proud & ~free).sum())
-    return (n_free - n_hinge) / math.sqrt(n_free + n_hinge + 1)
+    if float(np.mean(np.abs(offset[inside]) < threshold)) < HANDLE_PLANE_SHARE:
+        return None
+    proud = inside & (offset < -threshold) & (offset > -HANDLE_PROUD[1])
+    mask = np.zeros(image.shape, dtype=bool)
+    mask[rows[proud], cols[proud]] = True
+    mask = ndimage.binary_opening(mask, structure=np.ones((2, 2), dtype=bool))
+    blobs, count = ndimage.label(mask)
+    if count == 0:
+        return None
+    free = hi[1] if abs(hi[1]) > abs(lo[1]) else lo[1]  # the free edge's y (hinge: 0)
+    across = np.full(image.shape, np.nan)
+    across[rows, cols] = local[:, 1] / free  # 0 at the hinge, 1 at the free edge
+    best: tuple[int, float] | None = None
+    for k, found in enumerate(ndimage.find_objects(blobs), start=1):
+        y = across[found][blobs[found] == k]
+        compact = float(y.max() - y.min()) * abs(free) <= HANDLE_EXTENT
+        if len(y) >= HANDLE_PIXELS and compact and (best is None or len(y) > best[0]):
+            best = (len(y), float(np.mean(y)))
+    return None if best is None else best[1]
 
 
 def handle_side(
@@ -790,18 +816,28 @@ def handle_side(
     depth: NDArray[np.floating],
     camera: CameraIntrinsics,
 ) -> int | None:
-    """The hinge side the handle names (module docstring): of the lowest-residual
-    candidate of each side, the one whose `handle_evidence` reaches `HANDLE_Z` while its
-    rival's does not; None when neither or both do."""
-    evidence: dict[int, float] = {}
+    """The hinge side the handle names (module docstring). Each side's lowest-residual
+    candidate whose door is open less than `HANDLE_Q_MAX` and whose residual is within
+    `HANDLE_RESIDUAL` times the lowest votes: for its own side when its
+    door has the handle (`handle_position`) in its free part (at least `HANDLE_FREE` of the
+    way from the hinge), for the other when it has it by the hinge (at most
+    1 - `HANDLE_FREE`). A side is named when every vote is for it; None without a vote."""
+    votes = set()
+    floor = min((c.residual for c in candidates), default=math.inf)
     for side in (1, -1):
         same = [c for c in candidates if c.chirality == side]
-        if same:
-            best = min(same, key=lambda c: c.residual)
-            h = Hypothesis.from_label(best.label, columns)
-            evidence[side] = handle_evidence(h, category, parts, depth, camera)
-    named = [side for side, z in evidence.items() if z >= HANDLE_Z]
-    return named[0] if len(named) == 1 else None
+        if not same:
+            continue
+        best = min(same, key=lambda c: c.residual)
+        h = Hypothesis.from_label(best.label, columns)
+        if h.q >= HANDLE_Q_MAX or best.residual > HANDLE_RESIDUAL * floor:
+            continue
+        at = handle_position(h, category, parts, depth, camera)
+        if at is not None and at >= HANDLE_FREE:
+            votes.add(side)
+        elif at is not None and at <= 1.0 - HANDLE_FREE:
+            votes.add(-side)
+    return votes.pop() if len(votes) == 1 else None
 
 
 def _side(h: Hypothesis, chirality: int) -> Hypothesis:
