@@ -760,11 +760,11 @@ def handle_position(
     """Where the image shows the handle of `h`'s door: the position of its centre across
     the door from the hinge (0) to the free edge (1; beyond: below 0 or above 1), or None
     when no handle stands out (module docstring, `HANDLE_*`): the pixels inside the door's
-    (widened) outline standing proud of
-    its front plane (as the image has it: their median) by more than the threshold, after
-    a 2 x 2 binary opening (isolated noise and one-pixel edge slivers go), grouped into
-    connected blobs; the largest blob at most `HANDLE_EXTENT` across the door with at least
-    `HANDLE_PIXELS` pixels is the handle. `depth` (H, W) metres in `camera`."""
+    (widened) outline standing proud of its front plane (as the image has it: their
+    median) by more than the threshold, after a 2 x 2 binary opening (isolated noise and
+    one-pixel edge slivers go), grouped into connected blobs; the largest blob at most
+    `HANDLE_EXTENT` across the door with at least `HANDLE_PIXELS` pixels is the handle.
+    `depth` (H, W) metres in `camera`."""
     from scipy import ndimage
 
     from artic.objects.categories import build
@@ -818,10 +818,10 @@ def handle_side(
 ) -> int | None:
     """The hinge side the handle names (module docstring). Each side's lowest-residual
     candidate whose door is open less than `HANDLE_Q_MAX` and whose residual is within
-    `HANDLE_RESIDUAL` times the lowest votes: for its own side when its
-    door has the handle (`handle_position`) in its free part (at least `HANDLE_FREE` of the
-    way from the hinge), for the other when it has it by the hinge (at most
-    1 - `HANDLE_FREE`). A side is named when every vote is for it; None without a vote."""
+    `HANDLE_RESIDUAL` times the lowest votes: for its own side when its door has the
+    handle (`handle_position`) in its free part (at least `HANDLE_FREE` of the way from
+    the hinge), for the other when it has it by the hinge (at most 1 - `HANDLE_FREE`). A
+    side is named when every vote is for it; None without a vote or with split votes."""
     votes = set()
     floor = min((c.residual for c in candidates), default=math.inf)
     for side in (1, -1):
