@@ -197,6 +197,11 @@ class Hypothesis:
         """(4, 4) object-to-camera transform."""
         return make_transform(rot_z(self.yaw), np.array([self.x, self.y, self.z]))
 
+    def door_pose(self, hinge: Array) -> Array:
+        """(4, 4) the door link's pose in the camera frame, for the hinge frame `hinge`
+        (4, 4) in the body frame: turned by q about its axis (0, 0, chirality)."""
+        return self.pose_matrix() @ hinge @ make_transform(rot_z(self.chirality * self.q))
+
     def spec(self, category: str, parts: PartsConfig) -> ObjectSpec:
         return ObjectSpec(
             category=category, index=0, dof=1, joint_type="revolute", depth=self.depth,
@@ -302,11 +307,8 @@ class PosedRenderer:
         """The image of `h` and the door link's pose (4, 4)."""
         if not self.fits(h):
             raise ValueError("PosedRenderer: another geometry or hinge side")
-        pose = h.pose_matrix()
-        posed = dataclasses.replace(self.object, base_pose=pose)
-        # the door link's pose: the hinge frame turned by q about its axis (0, 0, c)
-        door = pose @ self.hinge @ make_transform(rot_z(self.chirality * h.q))
-        return self.backend.render(posed, np.array([h.q])), door
+        posed = dataclasses.replace(self.object, base_pose=h.pose_matrix())
+        return self.backend.render(posed, np.array([h.q])), h.door_pose(self.hinge)
 
     def label(self, h: Hypothesis, category: str, columns: list[str]) -> Array:
         """The label vector (L,) of `h` in `columns` order, every column consistent with
@@ -773,7 +775,7 @@ def handle_position(
     joint = obj.movable_joints[0]
     door = next(link for link in obj.links if link.name == joint.child)
     lo, hi = door.mesh.vertices.min(axis=0), door.mesh.vertices.max(axis=0)
-    pose = h.pose_matrix() @ joint.origin @ make_transform(rot_z(h.chirality * h.q))
+    pose = h.door_pose(joint.origin)
     image = np.where(np.isfinite(depth), depth, 0)
     rows, cols = np.nonzero(image > 0)
     local = (camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3]  # door frame: hinge y = 0
