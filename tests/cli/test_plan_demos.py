@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from artic.artifacts.formats import read_npz
+from artic.artifacts.hashing import sha256_file
 from artic.artifacts.manifest import read_manifest
+from artic.config.compose import models_dir
 from cli_runner import run_cli
 
 DEMO_ARRAYS = {"t", "q_robot", "qd_robot", "q_object", "ee_pose"}
@@ -200,7 +202,9 @@ def test_predicted_model_is_planned_on_and_recorded(tiny_drawer_mdn: Path, tmp_p
     assert code == 0, err
     info = json.loads((out / "demos.json").read_text())
     model = info["kinematic_model"]
-    assert model["source"] == "predicted" and model["mdn"] == str(tiny_drawer_mdn)
+    assert model["source"] == "predicted" and model["mdn"] == str(tiny_drawer_mdn / "model.pt")
+    assert model["mdn_sha256"] == sha256_file(tiny_drawer_mdn / "model.pt")
+    assert isinstance(model["refinement"]["refined"], bool) and model["refinement"]["status"]
     assert model["category"] == "drawer" and model["estimator"] == "most-likely"
     assert model["configuration_error_unit"] == "cm" and model["valid_pixels"] > 500
     pose = model["object_pose_in_camera"]
@@ -243,11 +247,29 @@ def test_predicted_model_is_planned_on_and_recorded(tiny_drawer_mdn: Path, tmp_p
     assert model1["true"] == model["true"] and model1["predicted"] != model["predicted"]
 
 
-def test_predicted_model_folder_missing_is_bad_input(tmp_path: Path) -> None:
-    out = tmp_path / "bad"
+def test_without_a_local_mdn_the_shipped_one_is_used(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Perception in the loop as a user runs it: no MDN trained here, the shipped drawer
+    model estimates the drawer (refined), the demos are planned on its estimate."""
+    monkeypatch.delenv("ARTIC_MODELS")
+    shipped = models_dir() / "mdn" / "drawer" / "model.pt"
+    out = tmp_path / "shipped"
     code, _, err = run_cli(*PREDICTED, f"artifacts_root={tmp_path / 'nowhere'}", f"out={out}")
+    assert code == 0, err
+    model = json.loads((out / "demos.json").read_text())["kinematic_model"]
+    assert Path(model["mdn"]).resolve() == shipped.resolve()
+    assert model["mdn_sha256"] == sha256_file(shipped)
+    assert "mdn" not in read_manifest(out).inputs  # a shipped model is no stage output
+    # the shipped model reads the simulated drawer within a few centimetres
+    assert model["axis_position_error_cm"][0] < 10 and model["axis_direction_error_deg"][0] < 10
+
+
+def test_predicted_model_file_missing_is_bad_input(tmp_path: Path) -> None:
+    out = tmp_path / "bad"
+    code, _, err = run_cli(*PREDICTED, f"model.mdn={tmp_path / 'nowhere.pt'}", f"out={out}")
     assert code == 2, err
-    assert str(tmp_path / "nowhere" / "models" / "mdn" / "drawer") in err
+    assert "model.mdn" in err and str(tmp_path / "nowhere.pt") in err
     assert len(err.strip().splitlines()) == 1 and not out.exists()
 
 

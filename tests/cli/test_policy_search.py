@@ -51,7 +51,9 @@ def write_plan_demos(folder: Path, task: str, n_joints: int = 7, n_ok: int = 2) 
         "task": task, "n_requested": n_ok, "control_dt": DT, "n_joints": n_joints,
         "kinematic_model": {"source": "true"}, "planner": "RRTConnect", "demos": entries,
     })  # fmt: skip
-    write_manifest(folder, "plan-demos", {"task": {"name": task}, "out": str(folder)})
+    config = {"task": {"name": task}, "out": str(folder), "model": {"source": "true"},
+              "execute": {"gain": 5.0}}  # fmt: skip
+    write_manifest(folder, "plan-demos", config)
     return folder
 
 
@@ -107,6 +109,9 @@ def test_pi2cma_writes_curve_final_dmps_and_summary(drawer_runs):
         assert float(r["mean_return"]) < 0 and 0 <= float(r["success_rate"]) <= 1
         # the normalised return is 1 - R / R_idle with R_idle < 0
         assert float(r["normalised_return"]) <= 1
+        # the share of the update's exploration rollouts touching the drawer; none at 0
+        touch = float(r["touch_rate"])
+        assert np.isnan(touch) if r["update"] == "0" else touch in (0, 1 / 3, 2 / 3, 1)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["algorithm"] == "pi2cma" and summary["init"] == "bootstrap"
     assert summary["final_policies"] == ["seeds/seed_000/dmp.json", "seeds/seed_001/dmp.json"]
@@ -237,7 +242,8 @@ def test_evaluate_bootstrap_writes_curves_success_and_report(drawer_runs, tmp_pa
                            f"bootstrap={drawer_runs['bootstrap']}",
                            f"random={drawer_runs['random']}", f"out={out}")  # fmt: skip
     assert code == 0, err
-    for name in ("curves.csv", "curves.png", "episodes.csv", "success.csv", "report.md"):
+    for name in ("curves.csv", "curves.png", "episodes.csv", "success.csv", "report.md",
+                 "summary.csv", "fig5_3.png"):  # fmt: skip
         assert (out / name).is_file(), name
     with (out / "curves.csv").open(newline="") as f:
         curves = list(csv.DictReader(f))
@@ -247,9 +253,36 @@ def test_evaluate_bootstrap_writes_curves_success_and_report(drawer_runs, tmp_pa
     boot = [r for r in read_curve(drawer_runs["bootstrap"]) if r["update"] == "2"]
     expected = np.mean([float(r["normalised_return"]) for r in boot])
     assert float(curves[2]["mean"]) == pytest.approx(expected)
+    assert float(curves[2]["touch_rate"]) == pytest.approx(
+        np.mean([float(r["touch_rate"]) for r in boot])
+    )
     with (out / "success.csv").open(newline="") as f:
         success = list(csv.DictReader(f))
     assert [s["episodes"] for s in success] == ["4", "4"]
+    # summary.csv: the columns, one row per init, what the curves and files say
+    with (out / "summary.csv").open(newline="") as f:
+        reader = csv.DictReader(f)
+        summary = list(reader)
+    assert reader.fieldnames == ["task", "init", "baseline", "model_source", "demo_success",
+                                 "success_update_10", "final_success", "return_update_0",
+                                 "return_update_50"]  # fmt: skip
+    b, r = summary
+    assert (b["task"], b["init"], b["baseline"], b["model_source"]) == (
+        "drawer",
+        "bootstrap",
+        "",
+        "true",
+    )
+    assert (r["init"], r["baseline"], r["model_source"], r["demo_success"]) == (
+        "random",
+        "exploring",
+        "",
+        "",
+    )
+    # the tiny runs have 2 updates: no update 10 or 50
+    assert b["success_update_10"] == b["return_update_50"] == ""
+    assert float(b["return_update_0"]) == pytest.approx(float(curves[0]["mean"]), abs=1e-4)
+    assert float(b["final_success"]) == float(success[0]["success_rate"])
     report = (out / "report.md").read_text()
     assert "beats random at every update" in report and "| 2 |" in report
     # the inputs swapped: refused

@@ -217,9 +217,11 @@ class _Oracle:
         self.codec = type("Codec", (), {"columns": list(labels)})()
         self.images: list[np.ndarray] = []
 
-    def estimate(self, depth: np.ndarray, mask: Any, estimator: str) -> np.ndarray:
+    def estimate_refined(
+        self, depth: np.ndarray, mask: Any, estimator: str, refine: bool
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         self.images.append(depth)
-        return np.array(list(self.labels.values()))
+        return np.array(list(self.labels.values())), {"status": "oracle", "refined": False}
 
 
 def test_perceive_with_a_perfect_estimator_returns_the_true_model() -> None:

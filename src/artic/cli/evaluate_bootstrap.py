@@ -1,19 +1,11 @@
 """`artic evaluate bootstrap`: Figure 5.2 for one task, bootstrapped against random init.
 
 Reads the two policy-search folders of a task (`bootstrap=`, `random=`; both must be of
-the same task config) and writes:
-- `curves.csv`: per init and update, the mean and standard error over seeds of the
-  normalised return 1 - R / R_idle (see `artic.learning.search`), and the rollouts done;
-- `curves.png`: those curves, mean with a standard-error band (Figure 5.2's style);
-- `episodes.csv`: `episodes` evaluation rollouts of each init's final policies (mean
-  action, no exploration), episode j run by seed j mod seeds, from reset seeds drawn
-  from (seed, j): init, seed, episode, reset_seed, return, success;
-- `success.csv`: per init, episodes, successes, success rate, mean return;
-- `report.md`: the table, whether the bootstrapped mean beats the random one at every
-  update, and the first update at which the bootstrapped curve reaches 90% of its final
-  value (target: within 50 updates);
-- with `video.enabled=true`, `video_<init>.gif`: episode 0 of each init (its seed 0's
-  final policy, the episode of that row of episodes.csv) filmed by `artic.sim.camera`.
+the same task config) and writes (docs/formats.md, "evaluate-bootstrap"): `curves.csv`
+and `curves.png` (the normalised return over seeds per update, Figure 5.2), the final
+policies' evaluation `episodes.csv` and `success.csv`, `report.md` (the table and the
+verdicts), `summary.csv` (one row per init, `artic.learning.bootstrap_summary`),
+`fig5_3.png` (Figure 5.3, `figure.enabled`) and `video_<init>.gif` (`video.enabled`).
 
 Chunks: one per (init, seed) pair, each rolling out that seed's share of the episodes
 (the chunk of seed 0 also films the video).
@@ -30,8 +22,9 @@ from artic.artifacts.chunk_parts import take_csv_rows
 from artic.artifacts.formats import write_csv
 from artic.cli.stage_runner import Plan, Stage
 from artic.evaluation import bootstrap_report as report
-from artic.evaluation.bootstrap_report import EPISODE_COLUMNS, INITS
+from artic.evaluation.bootstrap_report import EPISODE_COLUMNS, INITS, SUMMARY_COLUMNS
 from artic.evaluation.plots import bootstrap_curves
+from artic.learning import bootstrap_summary as summary
 from artic.learning.search import algorithm_of
 from artic.learning.search_output import (
     EvaluateBootstrapConfig,
@@ -40,6 +33,7 @@ from artic.learning.search_output import (
     curve_stats,
     film_episode,
     open_runs,
+    touch_share,
 )
 
 
@@ -86,9 +80,9 @@ def _finalize(
     cfg: EvaluateBootstrapConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
     runs = open_runs(cfg.task.name, inputs)
-    stats = {init: curve_stats(runs[init].curve()) for init in INITS}
-    curve_rows = [[init, int(u), int(r), m, s] for init in INITS for u, r, m, s in stats[init]]
-    write_csv(work / "curves.csv", ["init", "update", "rollouts", "mean", "sem"], curve_rows)
+    curves = {init: runs[init].curve() for init in INITS}
+    stats = {init: curve_stats(curves[init]) for init in INITS}
+    write_csv(work / "curves.csv", summary.CURVES_COLUMNS, summary.curve_rows(curves, stats))
     algorithm = algorithm_of(runs["bootstrap"].cfg)
     title = f"{cfg.task.name}: {algorithm}, mean and s.e. over seeds"
     bootstrap_curves(work / "curves.png", stats, title)
@@ -104,8 +98,12 @@ def _finalize(
     text = report.bootstrap_report(
         cfg.task.name, algorithm, (b.cfg.seeds, r.cfg.seeds), b.cfg.rollouts, stats, success,
         verdict, (cfg.reach_fraction, cfg.reach_within), (b.folder, r.folder),
+        {init: touch_share(curves[init]) for init in INITS},
     )  # fmt: skip
     (work / "report.md").write_text(text)
+    write_csv(work / "summary.csv", SUMMARY_COLUMNS, summary.summary_rows(runs, curves, success))
+    if cfg.figure.enabled:
+        summary.figure_5_3(cfg, runs, work / "fig5_3.png")
     videos = {"videos": ", ".join(f"video_{i}.gif" for i in INITS)} if cfg.video.enabled else {}
     return {
         "task": cfg.task.name,

@@ -34,7 +34,8 @@ from artic.planning.task_demos import (
     PlanDemosConfig,
     demo_stats,
     demos_index,
-    mdn_folder,
+    mdn_choice,
+    mdn_input,
     plan_one,
     planning_model,
     timings_record,
@@ -47,10 +48,6 @@ if TYPE_CHECKING:
 
 TIMINGS_JSON = "timings.json"  # wall-clock planning times: the one output that varies by run
 RECORDS = "records"  # per-demo JSON records, merged into demos.json by finalize
-
-
-def _input_paths(cfg: PlanDemosConfig) -> dict[str, Path]:
-    return {"mdn": mdn_folder(cfg)} if cfg.model.source == "predicted" else {}
 
 
 @functools.lru_cache(maxsize=1)
@@ -84,7 +81,7 @@ def _model(
 
 
 def _cached_model(cfg: PlanDemosConfig) -> tuple[ArticulatedObject, dict[str, Any]]:
-    mdn = str(mdn_folder(cfg)) if cfg.model.source == "predicted" else None
+    mdn = str(mdn_choice(cfg).path) if cfg.model.source == "predicted" else None
     return _model(cfg.task.model_dump_json(), cfg.model.model_dump_json(), cfg.seed, mdn)
 
 
@@ -143,5 +140,5 @@ STAGE: Stage[PlanDemosConfig] = Stage(
     chunk=plan_chunk,
     finalize=_finalize,
     inputs={"mdn": "train-mdn"},
-    input_paths=_input_paths,
+    input_paths=mdn_input,
 )

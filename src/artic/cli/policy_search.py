@@ -10,11 +10,12 @@ and plain data only, read with `weights_only=True`; a corrupt one is an InputErr
 it).
 
 Outputs: `learning_curve.csv` (seed, update, rollouts (done so far), mean_return and
-normalised_return and success_rate (of the mean policy), train_return (mean over the
-update's exploration rollouts; nan at update 0)), `timings.csv` (seed, update, seconds:
-wall time of the update's rollouts and step, kept apart so the curve is reproducible
-byte for byte), `seeds/seed_NNN/` with the final policy (`dmp.json` in fit-dmp's
-format, or `policy.pt`), and `summary.json`.
+normalised_return and success_rate (of the mean policy), train_return and touch_rate
+(mean return over the update's exploration rollouts, and the share of them in which the
+robot touched the object: `info["touched"]` of `artic.sim.envs`; nan at update 0)),
+`timings.csv` (seed, update, seconds: wall time of the update's rollouts and step, kept
+apart so the curve is reproducible byte for byte), `seeds/seed_NNN/` with the final
+policy (`dmp.json` in fit-dmp's format, or `policy.pt`), and `summary.json`.
 """
 
 from __future__ import annotations

@@ -11,6 +11,37 @@ import numpy as np
 INITS = ("bootstrap", "random")
 EPISODE_COLUMNS = ["init", "seed", "episode", "reset_seed", "return", "success"]
 SUCCESS_COLUMNS = ["init", "episodes", "successes", "success_rate", "mean_return"]
+#: summary.csv (docs/results/ch5/summary.csv is these rows of every report)
+SUMMARY_COLUMNS = ["task", "init", "baseline", "model_source", "demo_success",
+                   "success_update_10", "final_success", "return_update_0",
+                   "return_update_50"]  # fmt: skip
+
+
+def _cell(value: float | str | None) -> str:
+    """A summary.csv cell: "" for missing, floats to 4 decimals."""
+    if value is None:
+        return ""
+    return f"{value:.4f}" if isinstance(value, float) else str(value)
+
+
+def summary_row(
+    task: str,
+    init: str,
+    baseline: str | None,
+    model_source: str | None,
+    demo_success: float | None,
+    curve_means: dict[str, float | None],
+    final_success: float,
+) -> list[str]:
+    """One `SUMMARY_COLUMNS` row. `curve_means`: the mean over seeds of the learning
+    curve's `success_rate` at update 10 and `normalised_return` at updates 0 and 50, keyed
+    `success_update_10`, `return_update_0`, `return_update_50` (None: not reached by
+    every seed); None for a column that does not apply (a bootstrapped run's baseline, a
+    random run's model and demos) is left empty."""
+    return [_cell(v) for v in (
+        task, init, baseline, model_source, demo_success, curve_means["success_update_10"],
+        final_success, curve_means["return_update_0"], curve_means["return_update_50"],
+    )]  # fmt: skip
 
 
 def success_table(episodes: list[list[str]]) -> dict[str, tuple[int, int, float]]:
@@ -33,10 +64,12 @@ def bootstrap_report(
     verdict: dict[str, Any],
     reach: tuple[float, int],
     folders: tuple[Path, Path],
+    touch: dict[str, float | None],
 ) -> str:
     """report.md: the curves' table (`curve_stats` rows of each init), the success table,
     the verdicts (`bootstrap_verdict`); `seeds`, `folders`: (bootstrap, random);
-    `reach`: (fraction, within)."""
+    `reach`: (fraction, within); `touch`: per init, the share of exploration rollouts of
+    updates 1-10 that touched the object (None: not recorded)."""
     reach_fraction, reach_within = reach
     lines = [
         f"# Bootstrapped vs random initialisation: {task} (Figure 5.2)",
@@ -72,6 +105,9 @@ def bootstrap_report(
         f"- Bootstrapped reaches {reach_fraction:.0%} of its final normalised return at "
         f"update **{at if at is not None else 'never (final <= 0)'}** (target: within "
         f"{reach_within}): **{'yes' if verdict['reach_ok'] else 'no'}**",
+        "- Exploration rollouts of updates 1-10 that touch the object (grasp it or move "
+        "it): "
+        + ", ".join(f"{init} {'-' if v is None else f'{v:.0%}'}" for init, v in touch.items()),
         f"- Inputs: `{folders[0]}`, `{folders[1]}`",
         "",
     ]

@@ -129,6 +129,34 @@ def bootstrap_curves(path: Path, stats: dict[str, NDArray[np.float64]], title: s
     plt.close(fig)
 
 
+def frame_strips(
+    path: Path, rows: Sequence[tuple[str, Sequence[NDArray[np.uint8]], str]], title: str
+) -> None:
+    """Figure 5.3's layout: one row of frames per episode, its label on the left and a
+    caption (what the episode achieved) under the row's last frame."""
+    plt = _pyplot()
+    cols = max(len(frames) for _, frames, _ in rows)
+    height, width = rows[0][1][0].shape[:2]
+    size = 2.2
+    figsize = (size * cols, size * height / width * len(rows) + 0.6)
+    fig, axes = plt.subplots(len(rows), cols, squeeze=False, figsize=figsize)
+    for r, (label, frames, caption) in enumerate(rows):
+        for c in range(cols):
+            ax = axes[r, c]
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if c < len(frames):
+                ax.imshow(frames[c])
+            else:
+                ax.axis("off")
+        axes[r, 0].set_ylabel(label, fontsize=8)
+        axes[r, len(frames) - 1].set_xlabel(caption, fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, format="png", dpi=100, metadata={"Software": None})
+    plt.close(fig)
+
+
 def dmp_fit_plot(
     path: Path,
     demos: list[tuple[NDArray[np.float64], NDArray[np.float64]]],

@@ -211,6 +211,22 @@ class Predictor:
         """(L,) label vector for one (H, W) image in the training camera."""
         return self._estimate(self.mixture(depth, mask), depth, mask, estimator)
 
+    def estimate_refined(
+        self,
+        depth: NDArray[np.floating],
+        mask: NDArray[np.bool_] | None = None,
+        estimator: Estimator = "most-likely",
+        refine: bool = True,
+    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        """(L,) label vector for one (H, W) image in the training camera, geometrically
+        refined when `refine` (as `describe`), and the refinement's record."""
+        mix = self.mixture(depth, mask)
+        label = self._estimate(mix, depth, mask, estimator)
+        if not refine:
+            return label, {"status": "off", "refined": False}
+        result = self.refine(mix, depth, mask, label)
+        return result.label, result.as_json()
+
     def _estimate(
         self,
         mix: Mixture,

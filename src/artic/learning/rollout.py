@@ -38,7 +38,9 @@ class Trajectory:
     actions: (T, act_dim) float64, the actions the policy chose (before the environment
     clips them to its action space; these are what the policy's likelihood is of);
     rewards: (T,) float64 (Eq. 5.1 in the task environments); success: the environment's
-    `info["success"]` at the last step; reset_seed: the seed of `env.reset`.
+    `info["success"]` at the last step; reset_seed: the seed of `env.reset`; touched: its
+    `info["touched"]` at the last step (the robot touched the object; False if the
+    environment does not say).
     """
 
     observations: NDArray[np.float64]
@@ -46,6 +48,7 @@ class Trajectory:
     rewards: NDArray[np.float64]
     success: bool
     reset_seed: int
+    touched: bool = False
 
     @property
     def total_return(self) -> float:
@@ -96,6 +99,7 @@ def rollout(env: gym.Env[Any, Any], act: ActionFn, reset_seed: int) -> Trajector
         np.asarray(rewards),
         bool(info.get("success", False)),
         reset_seed,
+        bool(info.get("touched", False)),
     )
 
 
@@ -128,6 +132,11 @@ def gaussian_actor(policy: GaussianMLPPolicy, generator: torch.Generator | None 
 def returns_of(trajectories: Sequence[Trajectory]) -> NDArray[np.float64]:
     """(n,) undiscounted returns."""
     return np.array([t.total_return for t in trajectories], dtype=np.float64)
+
+
+def touch_rate(trajectories: Sequence[Trajectory]) -> float:
+    """Share of `trajectories` in which the robot touched the object."""
+    return float(np.mean([t.touched for t in trajectories]))
 
 
 def normalised_return(returns: NDArray[np.float64], idle: NDArray[np.float64]) -> float:

@@ -41,7 +41,9 @@ from artic.policies.gaussian_mlp import BCConfig
 from artic.sim.tasks import TaskConfig
 
 if TYPE_CHECKING:
-    from artic.learning.rollout import ActionFn
+    from collections.abc import Sequence
+
+    from artic.learning.rollout import ActionFn, Trajectory
     from artic.policies.dmp import DMPFile, DMPParams
     from artic.policies.gaussian_mlp import GaussianMLPPolicy
     from artic.sim.world import TaskWorld
@@ -51,7 +53,7 @@ log = logging.getLogger("artic")
 CURVE = "learning_curve.csv"
 TIMING = "timings.csv"
 CURVE_COLUMNS = ["seed", "update", "rollouts", "mean_return", "normalised_return",
-                 "success_rate", "train_return"]  # fmt: skip
+                 "success_rate", "train_return", "touch_rate"]  # fmt: skip
 N_JOINTS = 7
 Extent3 = Annotated[list[Annotated[float, Field(ge=0)]], Field(min_length=3, max_length=3)]
 Rows = list[list[Any]]
@@ -176,10 +178,11 @@ class Evaluator:
         if float(self.idle.mean()) >= 0:
             raise InputError("task.goal: the object starts at the goal; nothing to learn")
 
-    def row(self, index: int, update: int, n_rollouts: int, act: ActionFn, train: float,
-            seconds: float) -> list[Any]:  # fmt: skip
-        """One learning-curve row (`CURVE_COLUMNS` + seconds) of update `update`."""
-        from artic.learning.rollout import normalised_return, returns_of, rollouts
+    def row(self, index: int, update: int, n_rollouts: int, act: ActionFn,
+            train: Sequence[Trajectory], seconds: float) -> list[Any]:  # fmt: skip
+        """One learning-curve row (`CURVE_COLUMNS` + seconds) of update `update`, whose
+        exploration rollouts were `train` (none at update 0: their columns are nan)."""
+        from artic.learning.rollout import normalised_return, returns_of, rollouts, touch_rate
 
         trajs = rollouts(self.env, act, self.starts)
         r = returns_of(trajs)
@@ -187,7 +190,9 @@ class Evaluator:
         norm = normalised_return(r, self.idle)
         log.info("seed %d update %d: return %.2f, normalised %.3f, success %.2f (%.2f s)",
                  index, update, float(r.mean()), norm, success, seconds)  # fmt: skip
-        return [index, update, n_rollouts, float(r.mean()), norm, success, train, seconds]
+        explored = [returns_of(train).mean(), touch_rate(train)] if train else [np.nan] * 2
+        return [index, update, n_rollouts, float(r.mean()), norm, success,
+                *(float(v) for v in explored), seconds]  # fmt: skip
 
 
 def random_dmp(cfg: PolicySearchConfig, seed: int) -> DMPParams:
@@ -262,7 +267,7 @@ def pi2cma_search(cfg: PolicySearchConfig, index: int, env: Any, params: DMPPara
     learning-curve rows and the final DMP (of the mean). `state`: a checkpoint to resume
     from (arrays; None: start afresh); `save` gets one after every update."""
     from artic.learning.pi2_cma import PI2CMA
-    from artic.learning.rollout import dmp_actor, returns_of, rollout_seeds, rollouts
+    from artic.learning.rollout import dmp_actor, returns_of, rollout, rollout_seeds
 
     seed, p, task = run_seed(cfg.seed, index), cfg.pi2cma_policy, cfg.task
 
@@ -282,18 +287,17 @@ def pi2cma_search(cfg: PolicySearchConfig, index: int, env: Any, params: DMPPara
         sigma = np.where(lay.mask("weights"), p.sigma_weights,
                          np.where(lay.mask("goal"), p.sigma_goal, p.sigma_tau))  # fmt: skip
         search = PI2CMA(params.to_vector(), p.pi2cma, sigma0=sigma)
-        rows = [evaluator.row(index, 0, 0, actor(search.mean_), float("nan"), 0.0)]
+        rows = [evaluator.row(index, 0, 0, actor(search.mean_), [], 0.0)]
         checkpoint()
     for k in range(len(rows), cfg.updates + 1):
         t0 = time.perf_counter()
         samples = search.ask(np.random.default_rng(rollout_seeds(seed, k, 1, stream=2)))
         starts = rollout_seeds(seed, k, cfg.rollouts)
-        returns = np.array([returns_of(rollouts(env, actor(x), [s]))[0]
-                            for x, s in zip(samples, starts, strict=True)])  # fmt: skip
-        search.tell(samples, -returns)
+        trajs = [rollout(env, actor(x), s) for x, s in zip(samples, starts, strict=True)]
+        search.tell(samples, -returns_of(trajs))
         seconds = time.perf_counter() - t0
         act = actor(search.mean_)
-        rows.append(evaluator.row(index, k, k * cfg.rollouts, act, float(returns.mean()), seconds))
+        rows.append(evaluator.row(index, k, k * cfg.rollouts, act, trajs, seconds))
         checkpoint()
     return rows, params.from_vector(search.mean_, tau_min=p.tau_min)
 
@@ -331,7 +335,7 @@ def dapg_search(cfg: PolicySearchConfig, index: int, env: Any,
     else:
         if pairs is not None:
             behaviour_clone(policy, *pairs, m, torch_generator(seed, 0, stream=3))
-        rows = [evaluator.row(index, 0, 0, gaussian_actor(policy), float("nan"), 0.0)]
+        rows = [evaluator.row(index, 0, 0, gaussian_actor(policy), [], 0.0)]
 
     def checkpoint() -> None:
         rows[:] = plain(rows)  # numpy scalars as Python ones, as a resumed run reads them
@@ -341,10 +345,10 @@ def dapg_search(cfg: PolicySearchConfig, index: int, env: Any,
     for k in range(len(rows), cfg.updates + 1):
         t0 = time.perf_counter()
         act = gaussian_actor(policy, torch_generator(seed, k))
-        step = npg.update(rollouts(env, act, rollout_seeds(seed, k, cfg.rollouts)))
+        trajs = rollouts(env, act, rollout_seeds(seed, k, cfg.rollouts))
+        npg.update(trajs)
         seconds = time.perf_counter() - t0
-        row = evaluator.row(index, k, k * cfg.rollouts, gaussian_actor(policy),
-                            step.mean_return, seconds)  # fmt: skip
+        row = evaluator.row(index, k, k * cfg.rollouts, gaussian_actor(policy), trajs, seconds)
         rows.append(row)
         checkpoint()
     return rows, policy

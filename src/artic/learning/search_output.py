@@ -6,6 +6,7 @@ optional video of a final policy (`VideoConfig`, `film_episode`)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -15,7 +16,7 @@ import numpy as np
 from pydantic import Field
 
 from artic.artifacts.formats import read_csv, read_json
-from artic.artifacts.manifest import read_stage_config, verify_file
+from artic.artifacts.manifest import read_manifest, read_stage_config, verify_file
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 from artic.evaluation.bootstrap_report import INITS
@@ -45,6 +46,13 @@ class VideoConfig(Strict):
     camera: CameraConfig = Field(default_factory=CameraConfig, description="view and size")
 
 
+class FigureConfig(Strict):
+    """Figure 5.3: frames of three episodes from one start (evaluation episode 0)."""
+
+    enabled: bool = Field(True, description="write fig5_3.png (about 1 s of rendering)")
+    frames: int = Field(5, ge=2, le=12, description="frames per episode, evenly spaced")
+
+
 class EvaluateBootstrapConfig(StageConfig):
     """`artic evaluate bootstrap` (Figure 5.2): the two policy-search runs of a task."""
 
@@ -55,6 +63,7 @@ class EvaluateBootstrapConfig(StageConfig):
     reach_fraction: float = Field(0.9, gt=0, le=1, description="fraction of the final return")
     reach_within: int = Field(50, ge=0, description="updates to reach it within (target)")
     video: VideoConfig = Field(default_factory=VideoConfig, description="video of the policy")
+    figure: FigureConfig = Field(default_factory=FigureConfig, description="Figure 5.3")
 
     def episodes_of(self, n_seeds: int, seed: int) -> list[int]:
         """The evaluation episodes seed `seed` of a run of `n_seeds` seeds rolls out."""
@@ -76,13 +85,44 @@ class SearchOutput:
         return cls(folder, cfg, manifest)
 
     def curve(self) -> np.ndarray:
-        """(rows, 7) learning_curve.csv as floats (columns `CURVE_COLUMNS`)."""
+        """(rows, 8) learning_curve.csv as floats (columns `CURVE_COLUMNS`)."""
         rows = read_csv(self.folder / CURVE)
         if not rows or rows[0] != CURVE_COLUMNS:
             raise InputError(f"{self.folder / CURVE}: expected the columns {CURVE_COLUMNS}")
         return np.array([[float(v) for v in r] for r in rows[1:]], dtype=np.float64).reshape(
             -1, len(CURVE_COLUMNS)
         )
+
+    def initial_actor(self, index: int) -> Any:
+        """The `ActionFn` of a random run's initial policy of seed `index` (update 0,
+        mean action): the random DMP (`artic.learning.search.random_dmp`) or the random
+        Gaussian MLP, both rebuilt from the run's config and seed."""
+        from artic.learning.search import N_JOINTS, random_dmp, run_seed
+
+        if self.cfg.init != "random":
+            raise InputError(f"{self.folder}: only a random run's initial policy is rebuilt")
+        task, seed = self.cfg.task, run_seed(self.cfg.seed, index)
+        if algorithm_of(self.cfg) == "pi2cma":
+            from artic.learning.rollout import dmp_actor
+
+            p = self.cfg.pi2cma_policy
+            return dmp_actor(random_dmp(self.cfg, seed), p.basis, task.control_dt,
+                             task.horizon, p.k_p)  # fmt: skip
+        import torch
+
+        from artic.learning.rollout import gaussian_actor
+        from artic.policies.gaussian_mlp import GaussianMLPPolicy
+
+        m, obs_dim = self.cfg.mlp_policy, N_JOINTS + len(task.goal)
+        policy = GaussianMLPPolicy(
+            obs_dim,
+            N_JOINTS,
+            tuple(m.hidden),
+            m.init_log_std,
+            m.min_log_std,
+            generator=torch.Generator().manual_seed(seed),
+        )
+        return gaussian_actor(policy)
 
     def final_actor(self, index: int) -> Any:
         """The `ActionFn` of seed `index`'s final policy (mean action, no exploration)."""
@@ -136,7 +176,7 @@ def run_summary(
     dmp = algorithm_of(cfg) == "pi2cma"
     last = table[table[:, 1] == cfg.updates]
     first = table[table[:, 1] == 0]
-    seconds = table[table[:, 1] > 0, 7]
+    seconds = table[table[:, 1] > 0, len(CURVE_COLUMNS)]
     summary = {
         "task": cfg.task.name,
         "init": cfg.init,
@@ -191,7 +231,7 @@ def _mean_sem(x: np.ndarray) -> dict[str, float]:
 
 def curve_stats(curve: np.ndarray) -> np.ndarray:
     """(updates, 4) rows [update, rollouts, mean, sem] of the normalised return over seeds
-    for a learning_curve table (rows, 7); updates that not every seed reached are left out."""
+    for a learning_curve table (rows, 8); updates that not every seed reached are left out."""
     seeds = np.unique(curve[:, 0])
     out = []
     for u in np.unique(curve[:, 1]):
@@ -202,6 +242,56 @@ def curve_stats(curve: np.ndarray) -> np.ndarray:
         sem = x.std(ddof=1) / np.sqrt(len(x)) if len(x) > 1 else 0.0
         out.append([u, at[0, 2], x.mean(), sem])
     return np.array(out, dtype=np.float64).reshape(-1, 4)
+
+
+def curve_mean(curve: np.ndarray, update: int, column: str) -> float | None:
+    """Mean over seeds of `column` (of `CURVE_COLUMNS`) at `update`, or None when not
+    every seed of the curve reached that update."""
+    at = curve[curve[:, 1] == update]
+    if len(at) == 0 or len(at) != len(np.unique(curve[:, 0])):
+        return None
+    return float(at[:, CURVE_COLUMNS.index(column)].mean())
+
+
+def touch_share(curve: np.ndarray, first: int = 1, last: int = 10) -> float | None:
+    """Share of the exploration rollouts of updates `first`..`last` that touched the
+    object (mean of `touch_rate` over seeds and updates; every update has the same number
+    of rollouts), or None when none of those updates is recorded."""
+    at = curve[(curve[:, 1] >= first) & (curve[:, 1] <= last)]
+    values = at[:, CURVE_COLUMNS.index("touch_rate")]
+    return float(values.mean()) if len(values) else None
+
+
+def demos_folder(run: SearchOutput) -> Path:
+    """The plan-demos output a bootstrapped run descends from (through fit-dmp for DMP
+    policies), as its manifests record it."""
+    record = run.manifest.inputs.get("dmp") or run.manifest.inputs.get("demos")
+    if record is None:
+        raise InputError(f"{run.folder}: a bootstrapped run without its dmp or demos input")
+    manifest = read_manifest(Path(record.path))
+    if manifest.stage != "fit-dmp":
+        return Path(record.path)
+    if "demos" not in manifest.inputs:
+        raise InputError(f"{record.path}: a fit-dmp output without its demos input")
+    return Path(manifest.inputs["demos"].path)
+
+
+def demo_provenance(run: SearchOutput) -> tuple[str | None, float | None]:
+    """(the kinematic model source, the share of demos that succeeded when executed) of
+    the plan-demos output a bootstrapped run descends from (`demos_folder`); (None, None)
+    for a random run. A demo that was not planned counts as a failure; the share is None
+    when plan-demos did not execute its demos."""
+    if run.cfg.init == "random":
+        return None, None
+    folder = demos_folder(run)
+    manifest = read_manifest(folder, expected_stage="plan-demos")
+    source = manifest.config.get("model", {}).get("source")
+    if source is None:
+        raise InputError(f"{folder}: its manifest's config has no model.source")
+    if "executed successes" not in manifest.stats:
+        return str(source), None
+    total = int(manifest.stats["demos planned"]) + int(manifest.stats["demos failed"])
+    return str(source), int(manifest.stats["executed successes"]) / max(total, 1)
 
 
 def bootstrap_verdict(
@@ -234,28 +324,41 @@ def film_episode(
     `artic.learning.rollout.rollout` gives, and its animated GIF: the frames after the
     reset and after every `frame_every`-th step and the last one (`artic.sim.camera`,
     deterministic), shown at the control rate / `frame_every`."""
-    from artic.learning.rollout import rollout
     from artic.sim.camera import encode_gif
+
+    every = video.frame_every
+    traj, frames = film_steps(task, act, reset_seed, lambda k: k % every == 0, video.camera)
+    return traj, encode_gif(frames, fps=1.0 / (task.control_dt * every))
+
+
+def film_steps(
+    task: TaskConfig,
+    act: ActionFn,
+    reset_seed: int,
+    keep: Callable[[int], bool],
+    camera: CameraConfig,
+) -> tuple[Trajectory, list[np.ndarray]]:
+    """One episode of `act` from `reset(seed=reset_seed)` and the frames after the steps
+    `k` (0: the reset) for which `keep(k)`, and after the last step (only those are
+    rendered; the episode is the same as unfilmed)."""
+    from artic.learning.rollout import rollout
     from artic.sim.envs import ArticTaskEnv
 
-    env = _Filmed(
-        ArticTaskEnv(task, seed=None, render_mode="rgb_array", camera=video.camera),
-        video.frame_every,
-    )
+    env = _Filmed(ArticTaskEnv(task, seed=None, render_mode="rgb_array", camera=camera), keep)
     try:
         traj = rollout(env, act, reset_seed)
     finally:
         env.close()
-    return traj, encode_gif(env.frames, fps=1.0 / (task.control_dt * video.frame_every))
+    return traj, env.frames
 
 
 class _Filmed(gym.Wrapper[Any, Any, Any, Any]):
-    """Keeps `render()` frames of the last episode: after the reset, after every
-    `every`-th step and after the step that ends it (only those are rendered)."""
+    """Keeps `render()` frames of the last episode: after the reset, after every step
+    `k` with `keep(k)` and after the step that ends it (only those are rendered)."""
 
-    def __init__(self, env: gym.Env[Any, Any], every: int) -> None:
+    def __init__(self, env: gym.Env[Any, Any], keep: Callable[[int], bool]) -> None:
         super().__init__(env)
-        self.every, self._steps = every, 0
+        self.keep, self._steps = keep, 0
         self.frames: list[np.ndarray] = []
 
     def _keep(self) -> None:
@@ -270,6 +373,40 @@ class _Filmed(gym.Wrapper[Any, Any, Any, Any]):
     def step(self, action: Any) -> Any:
         out = self.env.step(action)
         self._steps += 1
-        if self._steps % self.every == 0 or out[2] or out[3]:
+        if self.keep(self._steps) or out[2] or out[3]:
             self._keep()
         return out
+
+
+def demo_actor(folder: Path, task: TaskConfig) -> ActionFn:
+    """The `ActionFn` that replays a plan-demos output's first demo as plan-demos executes
+    it: its joint positions and velocities tracked with the stage's `execute.gain`
+    (`artic.control.tracking.JointTracker`)."""
+    from artic.artifacts.demo_dataset import load_demos
+    from artic.artifacts.formats import read_npz
+    from artic.control.tracking import JointTracker
+
+    demo = load_demos(folder, task.name, max_demos=1).demos[0]
+    manifest = read_manifest(folder, expected_stage="plan-demos")
+    qd = read_npz(verify_file(folder, manifest, demo.file))["qd_robot"].astype(np.float64)
+    return JointTracker(demo.q, qd, float(manifest.config["execute"]["gain"]))
+
+
+def figure_frames(
+    runs: dict[str, SearchOutput], reset_seed: int, frames: int, camera: CameraConfig
+) -> list[tuple[str, list[np.ndarray], Trajectory]]:
+    """Figure 5.3's rows, each (label, `frames` frames evenly spaced over the episode,
+    the episode), from the start of `reset_seed`: (a) the random run's initial policy
+    (seed 0), what learning from scratch starts with; (b) the first planned demo replayed
+    as plan-demos executes it; (c) the bootstrapped run's final policy (seed 0)."""
+    task = runs["bootstrap"].cfg.task
+    at = {round(i * task.horizon / (frames - 1)) for i in range(frames)}
+    rows = []
+    for label, act in (
+        ("(a) random initial policy", runs["random"].initial_actor(0)),
+        ("(b) planned demo, executed", demo_actor(demos_folder(runs["bootstrap"]), task)),
+        ("(c) bootstrapped, learnt", runs["bootstrap"].final_actor(0)),
+    ):
+        traj, kept = film_steps(task, act, reset_seed, lambda k: k in at, camera)
+        rows.append((label, kept, traj))
+    return rows

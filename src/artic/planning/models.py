@@ -62,8 +62,14 @@ class ModelConfig(Strict):
     origin_std_m: float = Field(0.01, ge=0, description="noisy: axis origin std per axis, m")
     mdn: str | None = Field(
         None,
-        description="predicted: a train-mdn output folder of the task's object category; "
-        "null: <artifacts_root>/models/mdn/<category>",
+        description="predicted: the MDN of the task's object category, a model.pt or a "
+        "train-mdn output folder; null: the model store's choice, as `artic predict` makes "
+        "it (<artifacts_root>/models/mdn/<category> if trained there, else the shipped one)",
+    )
+    refine: bool = Field(
+        True,
+        description="predicted: the geometric refinement of `artic predict` (on by default "
+        "there too; kinematics/refine.py)",
     )
     estimator: Estimator = Field(
         "most-likely",
@@ -203,7 +209,7 @@ def predicted_model(
     rng = np.random.default_rng([seed, PERCEPTION_STREAM])
     seen = perceive(
         true, spec, start, camera, predictor, cfg.noise, rng, cfg.estimator,
-        classes.geometry, classes.chirality,
+        classes.geometry, classes.chirality, cfg.refine,
     )  # fmt: skip
     record: dict[str, Any] = {
         "source": "predicted",

@@ -229,7 +229,8 @@ class Perception(NamedTuple):
     """What `perceive` saw and estimated.
 
     model: the predicted model, world frame. view: the rendered image. predicted, true:
-    label vectors (camera frame) by column name. errors: `axis_errors`.
+    label vectors (camera frame) by column name. errors: `axis_errors`. refinement: what
+    the geometric refinement did (`artic predict`'s "refinement" record).
     """
 
     model: ArticulatedObject
@@ -237,6 +238,7 @@ class Perception(NamedTuple):
     predicted: dict[str, float]
     true: dict[str, float]
     errors: dict[str, list[float]]
+    refinement: dict[str, Any]
 
 
 def perceive(
@@ -250,10 +252,12 @@ def perceive(
     estimator: Estimator = "most-likely",
     geometry: GeometryRanges | None = None,
     chiralities: Sequence[int] = (-1, 1),
+    refine: bool = True,
 ) -> Perception:
     """Render `true_model` (world frame; built from `spec`, whose pose is ignored) at
     `start` (dof,) from the level camera `camera_to_world` in the predictor's training
-    camera, estimate its labels, and rebuild the model in the world frame."""
+    camera, estimate its labels (geometrically refined when `refine`, as `artic predict`
+    does), and rebuild the model in the world frame."""
     from artic.objects.labels import image_labels
 
     start = np.asarray(start, dtype=np.float64).reshape(-1)
@@ -263,12 +267,12 @@ def perceive(
     view = render_view(seen, start, predictor.camera, noise, rng)
     if not (view.depth > 0).any():
         raise ValueError("the rendered view has no depth returns")
-    estimate = predictor.estimate(view.depth, None, estimator)
+    estimate, refinement = predictor.estimate_refined(view.depth, None, estimator, refine)
     predicted = {c: float(v) for c, v in zip(predictor.codec.columns, estimate, strict=True)}
     true = image_labels(true_spec, seen, start)
     model = labels_to_model(predicted, spec, start, geometry, chiralities)
     errors = axis_errors(predicted, true, spec.dof, spec.joint_type)
-    return Perception(to_world(model, camera_to_world), view, predicted, true, errors)
+    return Perception(to_world(model, camera_to_world), view, predicted, true, errors, refinement)
 
 
 def summary(perception: Perception, digits: int = 6) -> dict[str, Any]:
@@ -281,6 +285,7 @@ def summary(perception: Perception, digits: int = 6) -> dict[str, Any]:
     return {
         **{k: r(v) for k, v in perception.errors.items()},
         "valid_pixels": int((perception.view.depth > 0).sum()),
+        "refinement": perception.refinement,
         "predicted": {k: round(v, digits) for k, v in p.items()},
         "true": {k: round(v, digits) for k, v in perception.true.items()},
     }

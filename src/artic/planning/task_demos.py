@@ -28,11 +28,10 @@ from artic.planning.models import ModelConfig
 from artic.sim.tasks import ArticulatedScene, TaskConfig, TBallScene
 
 if TYPE_CHECKING:
+    from artic.artifacts.model_store import ModelChoice
     from artic.objects.model import ArticulatedObject
     from artic.planning.demos import Demo, RobotFunctions
     from artic.sim.world import TaskWorld
-
-MDN_KIND = "kinematics-mdn"  # model-file kind written by train-mdn
 
 
 class DemosConfig(Strict):
@@ -78,20 +77,41 @@ class PlanDemosConfig(StageConfig):
         return self
 
 
-def mdn_folder(cfg: PlanDemosConfig) -> Path:
-    """The train-mdn output the `predicted` model comes from."""
-    if cfg.model.mdn is not None:
-        return Path(cfg.model.mdn)
+def mdn_choice(cfg: PlanDemosConfig) -> ModelChoice:
+    """The MDN the `predicted` model comes from, chosen as `artic predict` chooses
+    (`artifacts.model_store.choose_model`): `model.mdn` (a model.pt, or a train-mdn
+    output folder: its model.pt); else `<artifacts_root>/models/mdn/<category>` unless it
+    is a debug model; else the shipped model of the category."""
+    from artic.artifacts.model_store import MODEL_FILE, choose_model
+
     scene = cfg.task.scene
     assert isinstance(scene, ArticulatedScene)
-    return Path(cfg.artifacts_root) / "models" / "mdn" / scene.category
+    given = Path(cfg.model.mdn) if cfg.model.mdn is not None else None
+    if given is not None and given.is_dir():
+        given = given / MODEL_FILE
+    root = Path(cfg.artifacts_root) / "models"
+    return choose_model("mdn", scene.category, given, "model.mdn", root=root)
+
+
+def mdn_input(cfg: PlanDemosConfig) -> dict[str, Path]:
+    """plan-demos' stage inputs: {"mdn": the train-mdn output folder holding the chosen
+    MDN (`mdn_choice`; its manifest beside it)} for the `predicted` source; nothing for
+    the others, nor for a shipped model (its bytes are checked against its model card
+    instead, and demos.json records its sha256)."""
+    from artic.artifacts.manifest import MANIFEST
+
+    if cfg.model.source != "predicted":
+        return {}
+    folder = mdn_choice(cfg).path.parent
+    return {"mdn": folder} if (folder / MANIFEST).is_file() else {}
 
 
 def planning_model(
     cfg: ModelConfig, seed: int, world: TaskWorld, mdn: Path | None = None
 ) -> tuple[ArticulatedObject, dict[str, Any]]:
     """The kinematic model to plan with (one for all demos: the robot estimates the object
-    once) and its record for demos.json (`artic.planning.models`)."""
+    once) and its record for demos.json (`artic.planning.models`); `mdn`: the MDN's
+    model.pt for the `predicted` source (`mdn_choice`)."""
     from artic.planning.models import noisy_model, predicted_model
 
     true = world.kinematic_model()
@@ -100,18 +120,17 @@ def planning_model(
     if cfg.source == "noisy":
         return noisy_model(cfg, seed, true)
     if mdn is None:
-        raise ValueError("model.source predicted needs the MDN folder")
-    from artic.artifacts.manifest import read_manifest, verify_file
-    from artic.artifacts.model_file import load_model_file
+        raise ValueError("model.source predicted needs the MDN's model file")
+    from artic.artifacts.hashing import sha256_file
     from artic.kinematics.predict import Predictor
 
     scene = world.cfg.scene
     assert isinstance(scene, ArticulatedScene)
-    path = verify_file(mdn, read_manifest(mdn, expected_stage="train-mdn"), "model.pt")
-    predictor = Predictor.from_payload(load_model_file(path, MDN_KIND, scene.category))
+    predictor = Predictor.load(mdn, scene.category)
     start = np.asarray(world.cfg.object_start, dtype=np.float64)
     model, record = predicted_model(cfg, seed, true, scene.spec(), start, scene.category, predictor)
-    return model, {"source": "predicted", "mdn": str(mdn), **record}
+    return model, {"source": "predicted", "mdn": str(mdn), "mdn_sha256": sha256_file(mdn),
+                   **record}  # fmt: skip
 
 
 def robot_functions(world: TaskWorld) -> RobotFunctions:

@@ -12,7 +12,11 @@
 - reward Eq. 5.1, r_t = -c ||q_O* - q_O||^2 - a_t^T R a_t with R = r I, evaluated on
   the object state after the step and a_t as given (before clipping), in rad/s;
 - `terminated` is always False; `truncated` once `horizon` steps are taken;
-- `info`: `success` (||q_O - q_O*|| <= success_threshold) and `q_object`;
+- `info`: `success` (||q_O - q_O*|| <= success_threshold), `q_object`, and `touched`:
+  whether the robot has touched the object since the reset (the grasp has held it, or
+  the object has moved more than `TOUCH_DISTANCE` from where it started: its joint
+  values, m or rad, or the t-ball's ball centre, m), which `artic policy-search` counts
+  to report how often a policy reaches the object;
 - `render_mode="rgb_array"`: `render()` returns a (height, width, 3) uint8 frame of
   `artic.sim.camera.SceneCamera` (PyBullet's TinyRenderer, deterministic), whose client
   is made at the first `render()`; `render_mode=None` never renders (`render()` returns
@@ -43,6 +47,7 @@ from artic.sim.world import TaskWorld
 
 JOINT_MARGIN = 0.1  # rad beyond the URDF limits still inside the observation space
 OBJECT_BOUND = 10.0  # m or rad beyond the object range still inside the observation space
+TOUCH_DISTANCE = 0.005  # m or rad the object moves before an episode counts as touching it
 
 #: Gymnasium names of tasks whose name is not simply capitalised (`env_id`)
 ENV_NAMES = {"tball": "TBall"}
@@ -120,6 +125,8 @@ class ArticTaskEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         )
         self._rng = np.random.default_rng(seed)
         self._steps = 0
+        self._touched = False
+        self._object_start = self._object_state()
 
     def _observation(self) -> NDArray[np.float32]:
         state = np.concatenate([self.world.robot_q(), self.world.object_q()]).astype(np.float32)
@@ -142,12 +149,24 @@ class ArticTaskEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
             self._rng = np.random.default_rng(seed)
         self.world.reset(self.start_configuration(), np.asarray(self.task.object_start))
         self._steps = 0
+        self._touched = False
+        self._object_start = self._object_state()
         return self._observation(), self._info()
+
+    def _object_state(self) -> NDArray[np.float64]:
+        """What moves when the robot touches the object: the ball's centre (3,), m, or
+        the object's joint values (dof,)."""
+        ball = self.world.ball_position()
+        return ball if ball is not None else self.world.object_q()
 
     def _info(self) -> dict[str, Any]:
         q_object = self.world.object_q()
         error = float(np.linalg.norm(q_object - self.world.goal))
-        return {"success": error <= self.task.success_threshold, "q_object": q_object}
+        return {
+            "success": error <= self.task.success_threshold,
+            "q_object": q_object,
+            "touched": self._touched,
+        }
 
     def step(
         self, action: NDArray[np.float32]
@@ -159,6 +178,8 @@ class ArticTaskEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         self.world.apply_action(a)
         self.world.step()
         self._steps += 1
+        moved = float(np.max(np.abs(self._object_state() - self._object_start)))
+        self._touched = self._touched or self.world.grasp_held or moved > TOUCH_DISTANCE
         info = self._info()
         reward = kinematic_reward(
             info["q_object"], self.world.goal, a, self.task.reward.c, self.task.reward.r
