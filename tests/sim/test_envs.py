@@ -108,6 +108,22 @@ def test_success_flag_uses_the_task_threshold():
         env.close()
 
 
+@pytest.mark.parametrize("task", ["drawer", "microwave", "tball"])
+def test_a_robot_keeping_still_never_touches_the_object(task):
+    """`info["touched"]` counts contact, not the object settling: idle, it stays False
+    (and a new episode starts untouched)."""
+    env = ArticTaskEnv(task, seed=0)
+    try:
+        for seed in (0, 1):
+            _, info = env.reset(seed=seed)
+            assert info["touched"] is False
+            for _ in range(env.task.horizon):
+                *_, info = env.step(np.zeros(7, dtype=np.float32))
+            assert info["touched"] is False
+    finally:
+        env.close()
+
+
 def test_unknown_task_is_an_input_error():
     with pytest.raises(InputError, match="known tasks"):
         ArticTaskEnv("teapot")

@@ -76,7 +76,7 @@ class DMPPolicyConfig(Strict):
         150.0, ge=0, description="std of random-init weights, baseline=exploring"
     )
     explore_half_extent: Extent3 = Field(
-        default_factory=lambda: [0.1, 0.15, 0.1],
+        default_factory=lambda: [0.07, 0.1, 0.07],
         description="baseline=exploring: half extents (x, y, z) of the world box around the "
         "object's target point (handle, ball) the tool goal is drawn from, m",
     )
