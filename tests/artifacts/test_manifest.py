@@ -1,8 +1,12 @@
+from pathlib import Path
+
 import pytest
 
 from artic.artifacts.formats import write_json
 from artic.artifacts.manifest import (
+    InputRecord,
     Manifest,
+    input_folder,
     list_outputs,
     outputs_hash,
     read_manifest,
@@ -76,3 +80,26 @@ def test_wrong_stage_is_refused(tmp_path):
     _manifest(tmp_path, stage="render-depth")
     with pytest.raises(InputError, match="expected a 'generate-dataset' output"):
         read_manifest(tmp_path, expected_stage="generate-dataset")
+
+
+def _with_input(out: str, path: str) -> Manifest:
+    return Manifest(
+        stage="policy-search", config={"out": out}, config_hash="0", seed=0,
+        inputs={"dmp": InputRecord(path=path, stage="fit-dmp", content_hash="0")},
+        outputs={}, content_hash="0", versions={}, started_at="", finished_at="",
+        wall_time_s=0.0, stats={},
+    )  # fmt: skip
+
+
+def test_a_relative_input_is_found_from_the_folder_the_run_started_in(tmp_path):
+    """A run started in /x with out=artifacts/policy/a and dmp=artifacts/dmp/a is read back
+    from anywhere: its dmp is /x/artifacts/dmp/a."""
+    folder = tmp_path / "artifacts" / "policy" / "a"
+    manifest = _with_input("artifacts/policy/a", "artifacts/dmp/a")
+    assert input_folder(folder, manifest, "dmp") == tmp_path / "artifacts" / "dmp" / "a"
+    # absolute paths stay; a folder moved away from its out takes the path as given
+    absolute = _with_input("artifacts/policy/a", str(tmp_path / "d"))
+    assert input_folder(folder, absolute, "dmp") == tmp_path / "d"
+    assert input_folder(tmp_path / "moved", manifest, "dmp") == Path("artifacts/dmp/a")
+    with pytest.raises(InputError, match="no input 'demos'"):
+        input_folder(folder, manifest, "demos")

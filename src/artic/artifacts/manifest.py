@@ -181,6 +181,24 @@ def read_stage_config(folder: Path, stage: str, schema: type[M]) -> tuple[M, Man
         raise InputError(f"{folder}: config in its manifest does not validate ({err})") from None
 
 
+def input_folder(folder: Path, manifest: Manifest, name: str) -> Path:
+    """Where input `name` of the output `folder` is now. A manifest records an input's
+    path as the run was given it; a relative one is relative to the folder the run was
+    started from, which is `folder` with the run's own (relative) `out` taken off its
+    end; when `folder` does not end in its `out` (it was moved), the path is taken as
+    given (relative to this process's folder)."""
+    if name not in manifest.inputs:
+        raise InputError(f"{folder}: its manifest records no input '{name}'")
+    recorded = Path(manifest.inputs[name].path)
+    out = Path(str(manifest.config.get("out", "")))
+    if recorded.is_absolute() or out.is_absolute() or not out.parts:
+        return recorded
+    here = folder.absolute().parts
+    if len(here) > len(out.parts) and here[-len(out.parts) :] == out.parts:
+        return Path(*here[: -len(out.parts)]) / recorded
+    return recorded
+
+
 def verify_file(folder: Path, manifest: Manifest, rel: str) -> Path:
     """Path of output `rel` after checking its size and sha256 against the manifest."""
     record = manifest.outputs.get(rel)

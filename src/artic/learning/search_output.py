@@ -16,7 +16,12 @@ import numpy as np
 from pydantic import Field
 
 from artic.artifacts.formats import read_csv, read_json
-from artic.artifacts.manifest import read_manifest, read_stage_config, verify_file
+from artic.artifacts.manifest import (
+    input_folder,
+    read_manifest,
+    read_stage_config,
+    verify_file,
+)
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 from artic.evaluation.bootstrap_report import INITS
@@ -264,16 +269,12 @@ def touch_share(curve: np.ndarray, first: int = 1, last: int = 10) -> float | No
 
 def demos_folder(run: SearchOutput) -> Path:
     """The plan-demos output a bootstrapped run descends from (through fit-dmp for DMP
-    policies), as its manifests record it."""
-    record = run.manifest.inputs.get("dmp") or run.manifest.inputs.get("demos")
-    if record is None:
-        raise InputError(f"{run.folder}: a bootstrapped run without its dmp or demos input")
-    manifest = read_manifest(Path(record.path))
-    if manifest.stage != "fit-dmp":
-        return Path(record.path)
-    if "demos" not in manifest.inputs:
-        raise InputError(f"{record.path}: a fit-dmp output without its demos input")
-    return Path(manifest.inputs["demos"].path)
+    policies), as its manifests record it (`input_folder`: a relative path is taken
+    from the folder the run was started in)."""
+    name = "dmp" if "dmp" in run.manifest.inputs else "demos"
+    parent = input_folder(run.folder, run.manifest, name)
+    manifest = read_manifest(parent)
+    return input_folder(parent, manifest, "demos") if manifest.stage == "fit-dmp" else parent
 
 
 def demo_provenance(run: SearchOutput) -> tuple[str | None, float | None]:
