@@ -47,8 +47,7 @@ def summary_rows(
             "return_update_50": curve_mean(curve, 50, "normalised_return"),
         }
         n, wins, _ = success[init]
-        rows.append(summary_row(run.cfg.task.name, init, baseline, source, demos,
-                                       means, wins / n))  # fmt: skip
+        rows.append(summary_row(run.cfg.task.name, init, baseline, source, demos, means, wins / n))
     return rows
 
 
