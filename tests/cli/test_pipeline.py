@@ -169,3 +169,26 @@ def test_bootstrap_override_no_stage_takes_exits_2(tmp_path, monkeypatch, overri
     monkeypatch.chdir(tmp_path)
     code, _, err = run_cli("bootstrap", "--task", "drawer", override, "--dry-run")
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.slow  # 2.5 min: the whole chain; test_plan_demos covers the predicted stage fast
+def test_bootstrap_with_the_predicted_model_runs_end_to_end(tmp_path, monkeypatch):
+    """Algorithm 1 with perception in the loop on a fresh clone: no MDN trained here, the
+    shipped drawer MDN estimates the drawer, demos are planned on it, and the chain (tiny
+    preset) runs to the report, whose summary names the model source."""
+    import csv
+    import json
+
+    monkeypatch.delenv("ARTIC_MODELS")
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli("bootstrap", "--task", "drawer", "debug=tiny", "model.source=predicted")
+    assert code == 0, err
+    demos = json.loads((tmp_path / "artifacts/demos/drawer/demos.json").read_text())
+    assert demos["kinematic_model"]["source"] == "predicted"
+    assert demos["kinematic_model"]["mdn"].endswith("models/mdn/drawer/model.pt")
+    report = tmp_path / "artifacts/reports/bootstrap/drawer"
+    with (report / "summary.csv").open(newline="") as f:
+        rows = {r["init"]: r for r in csv.DictReader(f)}
+    assert rows["bootstrap"]["model_source"] == "predicted"
+    assert rows["random"]["baseline"] == "exploring"
+    assert (report / "fig5_3.png").is_file()
