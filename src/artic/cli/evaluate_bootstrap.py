@@ -16,8 +16,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from artic.artifacts.chunk_parts import take_csv_rows
 from artic.artifacts.formats import write_csv
 from artic.cli.stage_runner import Plan, Stage
@@ -59,7 +57,7 @@ def evaluate_chunk(
     run = runs[init]
     act = run.final_actor(seed)
     episodes = cfg.episodes_of(run.cfg.seeds, seed)
-    starts = np.random.SeedSequence([cfg.seed, 7]).generate_state(cfg.episodes)
+    starts = cfg.episode_starts()
     rows: list[list[Any]] = []
     env = ArticTaskEnv(run.cfg.task, seed=None)
     try:

@@ -54,7 +54,7 @@ def summary_rows(
 def figure_5_3(cfg: EvaluateBootstrapConfig, runs: dict[str, SearchOutput], path: Path) -> None:
     """fig5_3.png: `figure_frames` from the start of evaluation episode 0 (the reset seed
     `artic evaluate bootstrap` draws for it), each row captioned with its outcome."""
-    start = int(np.random.SeedSequence([cfg.seed, 7]).generate_state(cfg.episodes)[0])
+    start = cfg.episode_starts()[0]
     task = runs["bootstrap"].cfg.task
     rows = []
     for label, frames, traj in figure_frames(runs, start, cfg.figure.frames, cfg.video.camera):

@@ -70,6 +70,12 @@ class EvaluateBootstrapConfig(StageConfig):
     video: VideoConfig = Field(default_factory=VideoConfig, description="video of the policy")
     figure: FigureConfig = Field(default_factory=FigureConfig, description="Figure 5.3")
 
+    def episode_starts(self) -> list[int]:
+        """The reset seed of each evaluation episode j, drawn from (seed, 7)."""
+        return [
+            int(v) for v in np.random.SeedSequence([self.seed, 7]).generate_state(self.episodes)
+        ]
+
     def episodes_of(self, n_seeds: int, seed: int) -> list[int]:
         """The evaluation episodes seed `seed` of a run of `n_seeds` seeds rolls out."""
         return [j for j in range(self.episodes) if j % n_seeds == seed]
