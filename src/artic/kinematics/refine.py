@@ -65,6 +65,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -73,12 +74,14 @@ from numpy.typing import NDArray
 
 from artic.geometry.camera import CameraIntrinsics
 from artic.geometry.transforms import make_transform, rot_z
-from artic.objects.model import ArticulatedObject
+from artic.objects.model import ArticulatedObject, Joint
 from artic.objects.spec import ObjectSpec, PartsConfig, Pose
 from artic.render.backend import DepthBackend, RenderedImage
 
-#: categories with one door on a vertical hinge (chirality = hinge side)
-SUPPORTED = ("cabinet", "microwave")
+#: the categories refined and their joint: one door on a vertical hinge (chirality =
+#: hinge side) or one drawer (`_fit`, "A drawer")
+JOINT_TYPES = {"cabinet": "revolute", "microwave": "revolute", "drawer": "prismatic"}
+SUPPORTED = tuple(JOINT_TYPES)
 #: render-assign-fit rounds per candidate
 ITERATIONS = 3
 #: an observed point joins a face when within this of its plane (m), per round
@@ -105,11 +108,20 @@ LINE_FLOOR = 0.004
 PRIOR_WEIGHT = 2.0
 #: a plane fit turning the yaw further than this from the hypothesis is not used (rad)
 MAX_YAW_STEP = math.radians(30.0)
-#: refined q is kept inside [0, Q_MAX] (rad)
+#: refined q is kept inside [0, Q_MAX] (rad); a drawer's inside [0, its depth] (m)
 Q_MAX = math.pi
-#: the mixture's central interval a refined yaw and q must lie in, widened by this (rad)
+#: the mixture's central interval a refined yaw and q must lie in, widened by this (rad;
+#: a drawer's q by `INTERVAL_MARGIN_M` metres)
 INTERVAL_LEVEL = 0.99
 INTERVAL_MARGIN = math.radians(5.0)
+INTERVAL_MARGIN_M = 0.03
+#: weight (in points) of the pull of a drawer's q towards the hypothesis: only for the
+#: rank of the least squares (a drawer front with no body front rim in view)
+Q_PRIOR_WEIGHT = 0.01
+#: the step of the search along a drawer's opening (`search_opening`, m)
+SEARCH_STEP = 0.01
+#: how far the search moves a drawer's base along its front and up or down (m)
+SEARCH_SPAN = 0.05
 #: the base height is read off the bottom silhouette edge when it has this many pixels
 MIN_EDGE_PIXELS = 5
 #: an edge pixel's rendered hypothesis must end within this many rows below it
@@ -161,54 +173,59 @@ class Hypothesis:
     height: float
     chirality: int
     q: float
+    joint_type: str = "revolute"
 
     @classmethod
-    def from_label(cls, label: Array, columns: list[str]) -> Hypothesis:
+    def from_label(
+        cls, label: Array, columns: list[str], joint_type: str = "revolute"
+    ) -> Hypothesis:
         """From a label vector (L,) with `columns` (docs/formats.md); sizes floored at
-        10 cm (an object's walls need room), q clipped to [0, `Q_MAX`]."""
+        10 cm (an object's walls need room), q clipped to its range (`q_max`)."""
         v = dict(zip(columns, np.asarray(label, dtype=np.float64).tolist(), strict=True))
+        depth = max(v["depth"], 0.1)
         return cls(
             v["pose_x"], v["pose_y"], v["pose_z"], v["pose_yaw"],
-            max(v["depth"], 0.1), max(v["width"], 0.1), max(v["height"], 0.1),
-            1 if v["chirality"] >= 0 else -1, float(np.clip(v["j0_q"], 0.0, Q_MAX)),
+            depth, max(v["width"], 0.1), max(v["height"], 0.1),
+            1 if v["chirality"] >= 0 else -1,
+            float(np.clip(v["j0_q"], 0.0, q_max(joint_type, depth))), joint_type,
         )  # fmt: skip
 
     def with_pose(self, x: float, y: float, z: float, yaw: float, q: float) -> Hypothesis:
-        return Hypothesis(x, y, z, yaw, self.depth, self.width, self.height, self.chirality, q)
+        return dataclasses.replace(self, x=x, y=y, z=z, yaw=yaw, q=q)
 
     def mirrored(self) -> Hypothesis:
         """The other hinge side, all else equal."""
-        return Hypothesis(
-            self.x, self.y, self.z, self.yaw, self.depth, self.width, self.height,
-            -self.chirality, self.q,
-        )  # fmt: skip
+        return dataclasses.replace(self, chirality=-self.chirality)
 
     def reflected(self) -> Hypothesis:
         """The mirror image about the vertical plane through the camera and the base: the
         other hinge side, the yaw reflected about the line of sight (what a network that
         read an object's mirror image would have seen turned the other way)."""
         bearing = math.atan2(self.y, self.x)
-        return Hypothesis(
-            self.x, self.y, self.z, 2 * bearing - self.yaw, self.depth, self.width,
-            self.height, self.chirality, self.q,
-        )  # fmt: skip
+        return dataclasses.replace(self, yaw=2 * bearing - self.yaw)
 
     def pose_matrix(self) -> Array:
         """(4, 4) object-to-camera transform."""
         return make_transform(rot_z(self.yaw), np.array([self.x, self.y, self.z]))
 
-    def door_pose(self, hinge: Array) -> Array:
-        """(4, 4) the door link's pose in the camera frame, for the hinge frame `hinge`
-        (4, 4) in the body frame: turned by q about its axis (0, 0, chirality)."""
-        return self.pose_matrix() @ hinge @ make_transform(rot_z(self.chirality * self.q))
+    def door_pose(self, joint: Joint) -> Array:
+        """(4, 4) the door's (or drawer's) link pose in the camera frame, `joint` the
+        object's movable joint: turned about (or moved along) its axis by q."""
+        return self.pose_matrix() @ joint.origin @ joint.motion(self.q)
 
     def spec(self, category: str, parts: PartsConfig) -> ObjectSpec:
         return ObjectSpec(
-            category=category, index=0, dof=1, joint_type="revolute", depth=self.depth,
+            category=category, index=0, dof=1, joint_type=self.joint_type, depth=self.depth,
             width=self.width, height=self.height, chirality=self.chirality,
             pose=Pose(x=self.x, y=self.y, z=self.z, yaw=self.yaw),
-            joint_limits=((0.0, Q_MAX),), parts=parts,
+            joint_limits=((0.0, q_max(self.joint_type, self.depth)),), parts=parts,
         )  # fmt: skip
+
+
+def q_max(joint_type: str, depth: float) -> float:
+    """The largest q a refinement returns: `Q_MAX` for a door, the object's depth for a
+    drawer (it cannot come out further than it is long)."""
+    return depth if joint_type == "prismatic" else Q_MAX
 
 
 @dataclass(frozen=True)
@@ -293,10 +310,9 @@ class PosedRenderer:
         self.chirality = hypothesis.chirality
         self.object: ArticulatedObject = build(hypothesis.spec(category, parts))
         self.backend: DepthBackend = make_backend("raycast", camera)
-        joint = self.object.movable_joints[0]
-        #: the hinge frame in the body frame (4, 4) and its point (3,)
-        self.hinge = joint.origin.copy()
-        self.joint_origin = joint.origin[:3, 3].copy()
+        #: the door's (or drawer's) joint; its frame's point in the body frame (3,)
+        self.joint = self.object.movable_joints[0]
+        self.joint_origin = self.joint.origin[:3, 3].copy()
         self.parts = parts
         self.door_thickness = parts.door_thickness
 
@@ -308,7 +324,7 @@ class PosedRenderer:
         if not self.fits(h):
             raise ValueError("PosedRenderer: another geometry or hinge side")
         posed = dataclasses.replace(self.object, base_pose=h.pose_matrix())
-        return self.backend.render(posed, np.array([h.q])), h.door_pose(self.hinge)
+        return self.backend.render(posed, np.array([h.q])), h.door_pose(self.joint)
 
     def label(self, h: Hypothesis, category: str, columns: list[str]) -> Array:
         """The label vector (L,) of `h` in `columns` order, every column consistent with
@@ -368,13 +384,19 @@ def _faces(
 
     front = is_body & (body[:, 0] < -h.depth / 2 + FACE_EPS)
     side = is_body & ~front & (np.abs(body[:, 1]) > h.width / 2 - FACE_EPS)
-    # either broad face of the door: its front (x = -thickness) or, opened far, its back
-    door_front = (part == 2) & (
-        (np.abs(door[:, 0] + thickness) < FACE_EPS) | (np.abs(door[:, 0]) < FACE_EPS)
-    )
+    if h.joint_type == "prismatic":
+        # a drawer's front (x = 0 in its frame); its bottom is above the base
+        door_front = (part == 2) & (np.abs(door[:, 0]) < FACE_EPS)
+        ends_at_base = front | side
+    else:
+        # either broad face of the door: its front (x = -thickness) or, opened far, its back
+        door_front = (part == 2) & (
+            (np.abs(door[:, 0] + thickness) < FACE_EPS) | (np.abs(door[:, 0]) < FACE_EPS)
+        )
+        ends_at_base = front | side | door_front
     front &= near(body, body_seen, 0)
     side &= near(body, body_seen, 1)
-    bottom = _bottom_edge(rows, cols, front | side | door_front, observed, rendered, rays)
+    bottom = _bottom_edge(rows, cols, ends_at_base, observed, rendered, rays)
     door_front &= near(door, door_seen, 0)
     return _Faces(
         (p_observed[front], body[front, 0]),
@@ -506,22 +528,41 @@ def _wrap(a: float) -> float:
     return math.pi - (math.pi - a) % (2 * math.pi)
 
 
-def _fit(h: Hypothesis, faces: _Faces, joint_origin: Array, seed: int) -> Hypothesis:
-    """One least-squares step (module docstring, step 2) from the grouped points."""
+def _fit_yaw(
+    h: Hypothesis,
+    front: tuple[Array, Array],
+    keep_front: NDArray[np.bool_],
+    side: tuple[Array, Array],
+    keep_side: NDArray[np.bool_],
+) -> tuple[float, NDArray[np.bool_], NDArray[np.bool_]]:
+    """The yaw of the front's normal fitted with the perpendicular sides
+    (`_robust_normal`), the hypothesis' when no point is kept or the fit turns it further
+    than `MAX_YAW_STEP`; the kept points of each."""
+    if keep_front.sum() + keep_side.sum() == 0:
+        return h.yaw, keep_front, keep_side
+    n, kf, ks = _robust_normal(front, keep_front, side, keep_side)
+    outward = -np.array([math.cos(h.yaw), math.sin(h.yaw)])  # the front faces -x_object
+    n = n if n @ outward >= 0 else -n
+    fitted = _angle(-n)
+    return (fitted if abs(_wrap(fitted - h.yaw)) <= MAX_YAW_STEP else h.yaw), kf, ks
+
+
+def _fit(
+    h: Hypothesis, faces: _Faces, joint_origin: Array, seed: int, rim: bool = True
+) -> Hypothesis:
+    """One least-squares step (module docstring, step 2) from the grouped points; a
+    drawer's without its body's front rim unless `rim` (`refine_hypothesis`)."""
     inl = {
         name: _ransac(getattr(faces, name)[0], seed + k)
         for k, name in enumerate(("front", "side", "door"))
     }
+    if h.joint_type == "prismatic":
+        if not rim:
+            inl["front"] = np.zeros_like(inl["front"])
+        return _fit_drawer(h, faces, inl, joint_origin)
     # yaw from the body's vertical faces: front normal n minimises n'C_f n + n_perp'C_s n_perp
-    yaw = h.yaw
-    if inl["front"].sum() + inl["side"].sum() > 0:
-        n, inl["front"], inl["side"] = _robust_normal(faces.front, inl["front"], faces.side,
-                                                      inl["side"])  # fmt: skip
-        outward = -np.array([math.cos(h.yaw), math.sin(h.yaw)])  # the front faces -x_object
-        n = n if n @ outward >= 0 else -n
-        fitted = _angle(-n)
-        if abs(_wrap(fitted - h.yaw)) <= MAX_YAW_STEP:
-            yaw = fitted
+    yaw, inl["front"], inl["side"] = _fit_yaw(h, faces.front, inl["front"], faces.side,
+                                              inl["side"])  # fmt: skip
     # q from the door's front normal against the body's front (normal turned by c q)
     q = h.q
     if inl["door"].sum() >= MIN_DOOR_POINTS:
@@ -552,8 +593,101 @@ def _fit(h: Hypothesis, faces: _Faces, joint_origin: Array, seed: int) -> Hypoth
     rhs.append(prior * np.array([h.x, h.y]))
     # every face normal is horizontal: the position across them is (x, y) alone
     t = np.linalg.lstsq(np.concatenate(rows)[:, :2], np.concatenate(rhs), rcond=None)[0]
-    z = float(np.median(faces.bottom)) if len(faces.bottom) >= MIN_EDGE_PIXELS else h.z
-    return h.with_pose(float(t[0]), float(t[1]), z, yaw, q)
+    return h.with_pose(float(t[0]), float(t[1]), _base_height(h, faces), yaw, q)
+
+
+def search_opening(
+    h: Hypothesis, renderer: PosedRenderer, observed: NDArray[np.floating]
+) -> Hypothesis:
+    """What a drawer's planes leave open, searched on the depth residual, one line at a
+    time. Its front's plane fixes where the front is, not how far the drawer is out: q
+    and the base's distance along the object's x trade one for the other, so q is
+    searched along that line (the front fixed, the base moved back by as much as the
+    drawer comes out) over [0, `q_max`]; then the base's position along the front (the
+    object's y, which no plane fixes when no side is in view) and its height (the bottom
+    edge hides under an open drawer) within `SEARCH_SPAN` of the fit. Each line every
+    `SEARCH_STEP`, then every `SEARCH_STEP` / 5 around the best."""
+    c, s = math.cos(h.yaw), math.sin(h.yaw)  # the object's x in the camera frame
+
+    def opening(d: float) -> Hypothesis:
+        return h.with_pose(h.x + d * c, h.y + d * s, h.z, h.yaw, h.q + d)
+
+    h = _line_search(opening, -h.q, q_max(h.joint_type, h.depth) - h.q, renderer, observed)
+
+    def across(d: float) -> Hypothesis:
+        return h.with_pose(h.x - d * s, h.y + d * c, h.z, h.yaw, h.q)
+
+    h = _line_search(across, -SEARCH_SPAN, SEARCH_SPAN, renderer, observed)
+
+    def up(d: float) -> Hypothesis:
+        return h.with_pose(h.x, h.y, h.z + d, h.yaw, h.q)
+
+    return _line_search(up, -SEARCH_SPAN, SEARCH_SPAN, renderer, observed)
+
+
+def _line_search(
+    move: Callable[[float], Hypothesis],
+    low: float,
+    high: float,
+    renderer: PosedRenderer,
+    observed: NDArray[np.floating],
+) -> Hypothesis:
+    """`move(d)` of the lowest depth residual for d in [low, high] (0 included): every
+    `SEARCH_STEP`, then every `SEARCH_STEP` / 5 around the best."""
+
+    def best(values: Array) -> float:
+        residuals = [depth_residual(renderer.render(move(float(d)))[0].depth, observed)
+                     for d in values]  # fmt: skip
+        return float(values[int(np.argmin(residuals))])
+
+    coarse = np.unique(np.concatenate([np.arange(0.0, low - 1e-9, -SEARCH_STEP),
+                                       np.arange(0.0, high + 1e-9, SEARCH_STEP)]))  # fmt: skip
+    d = best(coarse)
+    fine = d + np.arange(-4, 5) * SEARCH_STEP / 5
+    return move(best(fine[(fine >= low) & (fine <= high)]))
+
+
+def _base_height(h: Hypothesis, faces: _Faces) -> float:
+    return float(np.median(faces.bottom)) if len(faces.bottom) >= MIN_EDGE_PIXELS else h.z
+
+
+def _fit_drawer(
+    h: Hypothesis, faces: _Faces, inl: dict[str, NDArray[np.bool_]], joint_origin: Array
+) -> Hypothesis:
+    """One least-squares step for a drawer. Its front is parallel to the body's, so the
+    yaw comes from the body's front rim, the drawer's front (each on its own parallel
+    plane) and a side; then the base position (x, y) and the opening q together, by least
+    squares: the rim on x = -depth/2, a side on y = +-width/2 and the drawer's front on
+    x = -depth/2 - q (object frame), with a pull towards the hypothesis (q's only keeps
+    the system's rank: a drawer front with no rim in view moves the base, not q)."""
+    pts_f, off_f = faces.front
+    pts_d, off_d = faces.door
+    n_front = len(pts_f)
+    # the drawer front's plane in the object frame: its own frame's x plus the joint's
+    ahead = float(joint_origin[0]) - h.q
+    fronts = (np.concatenate([pts_f, pts_d]), np.concatenate([off_f, off_d + ahead]))
+    yaw, kept, inl["side"] = _fit_yaw(h, fronts, np.concatenate([inl["front"], inl["door"]]),
+                                      faces.side, inl["side"])  # fmt: skip
+    inl["front"], inl["door"] = kept[:n_front], kept[n_front:]
+    rot = rot_z(yaw)
+    a, b = rot[:, 0], rot[:, 1]  # object x and y in the camera frame
+    rows: list[Array] = []
+    rhs: list[Array] = []
+    for (pts, offset), keep, axis, q_coef in (
+        (faces.front, inl["front"], a, 0.0),
+        (faces.side, inl["side"], b, 0.0),
+        # the drawer's x: a . (p - t - R o_joint) + q (it moves along -x)
+        (faces.door, inl["door"], a, -1.0),
+    ):
+        rows.append(np.tile([axis[0], axis[1], q_coef], (int(keep.sum()), 1)))
+        rhs.append(pts[keep] @ axis - offset[keep])
+    rhs[-1] = rhs[-1] - a @ (rot @ joint_origin)
+    prior = np.diag([math.sqrt(PRIOR_WEIGHT)] * 2 + [math.sqrt(Q_PRIOR_WEIGHT)])
+    rows.append(prior)
+    rhs.append(prior @ np.array([h.x, h.y, h.q]))
+    t = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)[0]
+    q = float(np.clip(t[2], 0.0, q_max(h.joint_type, h.depth)))
+    return h.with_pose(float(t[0]), float(t[1]), _base_height(h, faces), yaw, q)
 
 
 def refine_hypothesis(
@@ -564,7 +698,10 @@ def refine_hypothesis(
     seed: int = 0,
 ) -> tuple[Hypothesis, float]:
     """`ITERATIONS` render-assign-fit rounds from `start`; of the start and each round's
-    result, the one with the lowest depth residual, and that residual."""
+    result, the one with the lowest depth residual, and that residual. For a drawer, the
+    first round leaves the body's front rim out of the fit and is followed by the search
+    along its opening (`search_opening`): the rim is a 2 cm strip, and from a start a few
+    centimetres off its pixels see into the drawer, not the rim."""
     h = start
     image, door_pose = renderer.render(h)
     best = (h, depth_residual(image.depth, observed))
@@ -574,7 +711,9 @@ def refine_hypothesis(
         for k in range(ITERATIONS):
             tolerance = TOLERANCES[min(k, len(TOLERANCES) - 1)]
             faces = _faces(h, image, door_pose, observed, rays, tolerance, renderer.door_thickness)
-            h = _fit(h, faces, renderer.joint_origin, seed)
+            h = _fit(h, faces, renderer.joint_origin, seed, rim=k > 0)
+            if k == 0 and h.joint_type == "prismatic":
+                h = search_opening(h, renderer, observed)
             image, door_pose = renderer.render(h)
             residual = depth_residual(image.depth, observed)
             if residual < best[1]:
@@ -591,12 +730,16 @@ def _threadpools() -> Any:
     return ThreadpoolController()
 
 
-def interval_ok(label: Array, columns: list[str], lower: Array, upper: Array) -> bool:
+def interval_ok(
+    label: Array, columns: list[str], lower: Array, upper: Array, joint_type: str = "revolute"
+) -> bool:
     """True when the label's yaw and q lie inside [lower, upper] (label units) widened by
-    `INTERVAL_MARGIN`: the quantities the planes read."""
-    for name in ("pose_yaw", "j0_q"):
+    `INTERVAL_MARGIN` (a drawer's q by `INTERVAL_MARGIN_M`): the quantities the planes
+    read."""
+    q_margin = INTERVAL_MARGIN_M if joint_type == "prismatic" else INTERVAL_MARGIN
+    for name, margin in (("pose_yaw", INTERVAL_MARGIN), ("j0_q", q_margin)):
         i = columns.index(name)
-        if not lower[i] - INTERVAL_MARGIN <= label[i] <= upper[i] + INTERVAL_MARGIN:
+        if not lower[i] - margin <= label[i] <= upper[i] + margin:
             return False
     return True
 
@@ -645,7 +788,7 @@ def refine(
             estimate, False, "not refined: the network's estimate is not finite",
             math.nan, math.nan, none,
         )  # fmt: skip
-    network = Hypothesis.from_label(estimate, columns)
+    network = Hypothesis.from_label(estimate, columns, JOINT_TYPES[category])
     try:
         residual_network, candidates = _candidates(
             network, observed, camera, category, columns, weights, means, lower, upper, parts
@@ -663,7 +806,9 @@ def refine(
     best = _choose_side(inside, network.chirality, side_weight(network.chirality, weights, means,
                                                                  columns))  # fmt: skip
     image, view = detail if detail is not None else (observed, camera)
-    handle = handle_side(inside, columns, category, parts, image, view)
+    handle = None
+    if network.joint_type == "revolute":
+        handle = handle_side(inside, columns, category, parts, image, view)
     if handle is not None and handle != best.chirality:
         best = min((c for c in inside if c.chirality == handle), key=lambda c: c.residual)
     if not best.residual < residual_network:
@@ -690,7 +835,9 @@ def _candidates(
 ) -> tuple[float, list[Candidate]]:
     """The network's residual and every refined candidate (module docstring)."""
     rays = camera.ray_directions()
-    renderers = {c: PosedRenderer(_side(network, c), category, parts, camera) for c in (1, -1)}
+    # a door from both hinge sides; a drawer has one
+    sides = (1, -1) if network.joint_type == "revolute" else (network.chirality,)
+    renderers = {c: PosedRenderer(_side(network, c), category, parts, camera) for c in sides}
     try:
         image, _ = renderers[network.chirality].render(network)
         residual_network = depth_residual(image.depth, observed)
@@ -699,13 +846,13 @@ def _candidates(
         covered = {1 if c >= 0 else -1 for c in chirality.tolist()}
         candidates = []
         for rank, k in enumerate(order.tolist()):
-            component = Hypothesis.from_label(means[k], columns)
+            component = Hypothesis.from_label(means[k], columns, network.joint_type)
             # the estimate's geometry for every start: one object per hinge side
             base = network.with_pose(component.x, component.y, component.z, component.yaw,
                                      component.q)  # fmt: skip
             side = component.chirality
-            starts = [_side(base, side), _side(base, -side)]
-            if rank == 0:  # and the top component's mirror image about the line of sight
+            starts = [_side(base, c) for c in sorted(sides, key=lambda c: c != side)]
+            if rank == 0 and len(sides) == 2:  # and the top component's mirror image
                 starts.append(_side(base, -side).reflected())
             for start in starts:
                 h, residual = refine_hypothesis(
@@ -716,7 +863,8 @@ def _candidates(
                 judged = h.chirality in covered
                 candidates.append(Candidate(
                     int(k), float(weights[k]), h.chirality, residual,
-                    interval_ok(label, columns, lower, upper) if judged else True, label,
+                    interval_ok(label, columns, lower, upper, h.joint_type) if judged else True,
+                    label,
                 ))  # fmt: skip
     finally:
         for r in renderers.values():
@@ -775,7 +923,7 @@ def handle_position(
     joint = obj.movable_joints[0]
     door = next(link for link in obj.links if link.name == joint.child)
     lo, hi = door.mesh.vertices.min(axis=0), door.mesh.vertices.max(axis=0)
-    pose = h.door_pose(joint.origin)
+    pose = h.door_pose(joint)
     image = np.where(np.isfinite(depth), depth, 0)
     rows, cols = np.nonzero(image > 0)
     local = (camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3]  # door frame: hinge y = 0
