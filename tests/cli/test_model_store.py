@@ -150,6 +150,38 @@ def test_ship_then_predict_and_list(workspace, trained, depth_png):
     assert code == 2 and "card.json: field" in err
 
 
+def test_evaluate_mdn_reads_a_shipped_model(workspace, trained, tiny_depth):
+    """`evaluate mdn model=models/mdn/C` (a shipped model's folder, its manifest input the
+    model's sha256) or `model=null` (the store's choice) evaluates the shipped model; one
+    that no longer matches its card exits 2."""
+    model, report = trained
+    folder = ship_model(_as_release(model, workspace / "release"), report,
+                        workspace / "shipped", "abc123")  # fmt: skip
+    card = read_card(folder)
+    for given in (str(folder), "null"):
+        out = workspace / f"eval-{given == 'null'}"
+        code, _, err = run_cli(
+            "evaluate", "mdn", "debug=tiny", "category=microwave", f"model={given}",
+            f"depth={tiny_depth}", f"out={out}", "evaluate.refine=false",
+        )  # fmt: skip
+        assert code == 0, err
+        record = json.loads((out / MANIFEST).read_text())["inputs"]["model"]
+        assert record["path"] == str(folder) and record["stage"] == "train-mdn"
+        assert record["content_hash"] == card.model_sha256[:16]
+        # the same bytes as the training output it was shipped from: the same figures
+        ours = [line for line in (out / "summary.csv").read_text().splitlines()
+                if line.startswith("Ours,")]  # fmt: skip
+        assert ours and ours[0] in (report / "summary.csv").read_text().splitlines()
+    with (folder / "model.pt").open("ab") as f:
+        f.write(b"\0")
+    code, _, err = run_cli(
+        "evaluate", "mdn", "debug=tiny", "category=microwave", f"model={folder}",
+        f"depth={tiny_depth}", f"out={workspace / 'eval-broken'}",
+    )  # fmt: skip
+    assert code == 2 and "does not match its card.json" in err
+    assert not (workspace / "eval-broken").exists()
+
+
 def test_camera_presets(workspace, trained, depth_png):
     model, _ = trained
     code, result, err = _predict(depth_png, "--model", str(model / "model.pt"))

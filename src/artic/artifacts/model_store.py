@@ -26,7 +26,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from artic.artifacts.formats import read_json, write_json
 from artic.artifacts.hashing import sha256_file
-from artic.artifacts.manifest import MANIFEST, Manifest, read_manifest
+from artic.artifacts.manifest import MANIFEST, InputRecord, Manifest, read_manifest
 from artic.config.compose import models_dir
 from artic.errors import InputError
 
@@ -219,6 +219,22 @@ def read_card(folder: Path) -> ModelCard:
         first = err.errors()[0]
         field = ".".join(str(p) for p in first["loc"])
         raise InputError(f"{path}: field {field}: {first['msg']}") from None
+
+
+def shipped_input(folder: Path, stage: str) -> InputRecord | None:
+    """A shipped model's folder given where a stage reads the output of `stage` (a
+    training stage: `evaluate mdn model=models/mdn/drawer`): its input record, with the
+    model file's sha256 (checked against its card; the first 16 hex digits) as its content
+    hash; None when `folder` is not a shipped model's (no card.json, or a manifest)."""
+    if not (folder / CARD_JSON).is_file() or (folder / MANIFEST).is_file():
+        return None
+    card = read_card(folder)
+    if card.stage != stage:
+        raise InputError(f"{folder}: a shipped {card.stage} model, not a {stage} one")
+    model = folder / MODEL_FILE
+    if not model.is_file() or sha256_file(model) != card.model_sha256:
+        raise InputError(f"{model}: does not match its {CARD_JSON} (edited or broken)")
+    return InputRecord(path=str(folder), stage=card.stage, content_hash=card.model_sha256[:16])
 
 
 def _shipped(folder: Path, card: ModelCard) -> StoredModel:

@@ -16,6 +16,7 @@ from pydantic import Field
 
 from artic.artifacts.depth_dataset import DepthDataset, source_objects
 from artic.artifacts.formats import write_csv
+from artic.artifacts.model_store import choose_model
 from artic.artifacts.workers import available_cpus
 from artic.cli.stage_runner import Plan, Stage
 from artic.config.schemas import StageConfig
@@ -33,7 +34,7 @@ MODEL = "model.pt"
 
 class EvaluateMdnConfig(StageConfig):
     category: CategoryRef
-    model: str = Field(description="a train-mdn output folder")
+    model: str | None = Field(None, description="train-mdn or shipped model folder; None: store's")
     depth: str = Field(description="a render-depth output folder (its test split is used)")
     objects: str | None = Field(
         None,
@@ -130,7 +131,8 @@ def _input_paths(cfg: EvaluateMdnConfig) -> dict[str, Path]:
     one depth's manifest records), checked to be that dataset by its content hash."""
     depth = Path(cfg.depth)
     objects = source_objects(depth, None if cfg.objects is None else Path(cfg.objects))
-    return {"model": Path(cfg.model), "depth": depth, "objects": objects}
+    model = Path(cfg.model or choose_model("mdn", cfg.category.name, None, "model").path.parent)
+    return {"model": model, "depth": depth, "objects": objects}
 
 
 STAGE: Stage[EvaluateMdnConfig] = Stage(

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from artic.artifacts.manifest import LOG, InputRecord, Manifest, now_iso, read_manifest
+from artic.artifacts.model_store import shipped_input
 from artic.artifacts.output import (
     ManifestHead,
     check_integrity,
@@ -198,6 +199,9 @@ def _gone(out: Path, config_hash: str, input_hashes: dict[str, str]) -> Result:
 def _read_inputs(stage: Stage[C], cfg: C) -> dict[str, InputRecord]:
     records: dict[str, InputRecord] = {}
     for name, path in stage.input_paths(cfg).items():
+        if (shipped := shipped_input(path, stage.inputs[name])) is not None:
+            records[name] = shipped  # a shipped model, checked against its card
+            continue
         try:
             manifest = read_manifest(path, expected_stage=stage.inputs[name])
             entry = stage_entries().get(manifest.stage)
