@@ -21,8 +21,8 @@
    same bytes on every CPU.
 7. Chapter 4 training (`--only segmenter`): a segmenter step of either head with the
    PointNet++ neighbourhoods computed in the forward pass and cached per cloud.
-8. Chapter 3's geometric refinement (`--only refine`): with the shipped microwave and
-   cabinet models on new objects of theirs (thesis_sim camera), the refinement's time
+8. Chapter 3's geometric refinement (`--only refine`): with the shipped microwave,
+   cabinet and drawer models on new objects of theirs (thesis_sim camera), the refinement's time
    per image in-process (median; target 200 ms) and the wall time of an `artic predict`
    process with and without it (target 3 s on an idle machine).
 
@@ -399,7 +399,7 @@ def segmenter_benchmark() -> list[dict[str, object]]:
 
 
 def refine_benchmark(tmp: Path, objects: int = 110) -> list[dict[str, object]]:
-    """The refinement (kinematics/refine.py) with the shipped MDNs of the one-door
+    """The refinement (kinematics/refine.py) with the shipped MDNs of the refined
     categories on `objects` new objects each (seed 1, two images per object, the test
     split): ms per image in-process (the network alone, and the refinement on top), and
     the wall time of `artic predict` processes (imports, model loading, one image)."""
@@ -408,7 +408,7 @@ def refine_benchmark(tmp: Path, objects: int = 110) -> list[dict[str, object]]:
     from artic.kinematics.predict import Predictor
 
     results: list[dict[str, object]] = []
-    for category in ("microwave", "cabinet"):
+    for category in ("microwave", "cabinet", "drawer"):
         objects_dir, depth_dir = tmp / f"refine-objects-{category}", tmp / f"refine-{category}"
         subprocess.run([*ARTIC, "generate-dataset", f"category={category}",
                         "experiment=ch3_cpu", f"dataset.objects={objects}", "seed=1",

@@ -606,7 +606,8 @@ def search_opening(
     drawer comes out) over [0, `q_max`]; then the base's position along the front (the
     object's y, which no plane fixes when no side is in view) and its height (the bottom
     edge hides under an open drawer) within `SEARCH_SPAN` of the fit. Each line every
-    `SEARCH_STEP`, then every `SEARCH_STEP` / 5 around the best."""
+    `SEARCH_STEP`, then every `SEARCH_STEP` / 5 around the best; of equal residuals (a
+    part the image does not show: the same render), the smallest move."""
     c, s = math.cos(h.yaw), math.sin(h.yaw)  # the object's x in the camera frame
 
     def opening(d: float) -> Hypothesis:
@@ -633,12 +634,13 @@ def _line_search(
     observed: NDArray[np.floating],
 ) -> Hypothesis:
     """`move(d)` of the lowest depth residual for d in [low, high] (0 included): every
-    `SEARCH_STEP`, then every `SEARCH_STEP` / 5 around the best."""
+    `SEARCH_STEP`, then every `SEARCH_STEP` / 5 around the best; of equal residuals (a
+    part the image does not show: the same render), the smallest move."""
 
     def best(values: Array) -> float:
         residuals = [depth_residual(renderer.render(move(float(d)))[0].depth, observed)
                      for d in values]  # fmt: skip
-        return float(values[int(np.argmin(residuals))])
+        return float(values[np.lexsort((np.abs(values), residuals))[0]])
 
     coarse = np.unique(np.concatenate([np.arange(0.0, low - 1e-9, -SEARCH_STEP),
                                        np.arange(0.0, high + 1e-9, SEARCH_STEP)]))  # fmt: skip
