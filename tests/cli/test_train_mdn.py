@@ -173,6 +173,27 @@ def test_predict_bad_images_exit_2(tiny_model, image, tmp_path, make, message):
     assert len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.parametrize(
+    ("mask", "message"),
+    [
+        (lambda depth: np.zeros(depth.shape, np.uint8), "the mask covers no pixel"),
+        (lambda depth: np.ones(depth.shape, np.uint8), "the mask covers every pixel"),
+        (lambda depth: (depth == 0).astype(np.uint8), "no valid depth pixel of"),
+    ],
+)
+def test_predict_bad_masks_exit_2(tiny_model, image, tmp_path, mask, message):
+    """A mask over nothing, over everything, or over the background only: one line naming
+    the mask, exit 2 (issue 19, "Bad input")."""
+    _, npy, camera = image
+    np.save(tmp_path / "mask.npy", mask(np.load(npy)))
+    code, _, err = run_cli(
+        "predict", str(npy), "--category", "microwave", "--camera", str(camera),
+        "--mask", str(tmp_path / "mask.npy"), "--model", str(tiny_model / "model.pt"),
+    )  # fmt: skip
+    assert code == 2 and message in err and "mask.npy" in err, err
+    assert len(err.strip().splitlines()) == 1
+
+
 def test_predict_refuses_unknown_category_missing_and_foreign_models(tiny_model, image, tmp_path):
     png, _, camera = image
     base = ["predict", str(png), "--camera", str(camera)]

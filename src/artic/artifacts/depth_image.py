@@ -108,7 +108,12 @@ def read_mask(path: Path, shape: tuple[int, ...]) -> NDArray[np.bool_]:
         mask = mask[..., 0]
     if mask.shape != shape:
         raise InputError(f"{path}: mask is {mask.shape}, depth image is {shape}")
-    return np.asarray(mask) != 0
+    inside = np.asarray(mask) != 0
+    if not inside.any():
+        raise InputError(f"{path}: the mask covers no pixel (nonzero = the object)")
+    if inside.all():
+        raise InputError(f"{path}: the mask covers every pixel (nonzero = the object only)")
+    return inside
 
 
 def camera_presets() -> dict[str, Path]:

@@ -439,6 +439,8 @@ def predict_image(
     reprojected = cam != predictor.camera
     if object_mask is not None:
         depth = np.where(object_mask, depth, 0).astype(np.float32)
+        if not (depth > 0).any():
+            raise InputError(f"{mask}: no valid depth pixel of {image} inside the mask")
     detail = None
     if reprojected:
         detail = (depth, cam)  # the refinement's handle test reads the image as taken
