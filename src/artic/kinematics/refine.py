@@ -56,8 +56,12 @@ handle to stand out of the sensor's noise, leaves the choice to the residuals. O
 closed door the two sides' renders differ by little more than the handle, which the
 residual over the whole object hardly weighs (docs/reproduction.md, issue 24).
 
-Supported: the one-door, vertical-hinge categories (`SUPPORTED`); others return the
-network's estimate with a status saying so.
+A drawer (`JOINT_TYPES`) takes the same rounds with its front in place of the door's
+plane, one start per component (no hinge sides, no handle test), and a search on the
+depth residual along its opening, across its front and up (`search_opening`, `_fit_drawer`).
+
+Supported: the one-door, vertical-hinge categories and the drawer (`SUPPORTED`); others
+return the network's estimate with a status saying so.
 """
 
 from __future__ import annotations
