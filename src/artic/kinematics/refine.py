@@ -644,7 +644,7 @@ def _line_search(
     def best(values: Array) -> float:
         residuals = [depth_residual(renderer.render(move(float(d)))[0].depth, observed)
                      for d in values]  # fmt: skip
-        return float(values[np.lexsort((np.abs(values), residuals))[0]])
+        return float(values[np.lexsort((np.abs(values), np.asarray(residuals)))[0]])
 
     coarse = np.unique(np.concatenate([np.arange(0.0, low - 1e-9, -SEARCH_STEP),
                                        np.arange(0.0, high + 1e-9, SEARCH_STEP)]))  # fmt: skip
