@@ -221,6 +221,12 @@ def read_card(folder: Path) -> ModelCard:
         raise InputError(f"{path}: field {field}: {first['msg']}") from None
 
 
+def _check_bytes(model: Path, card: ModelCard) -> None:
+    """InputError unless the shipped `model` file is the one its card describes."""
+    if not model.is_file() or sha256_file(model) != card.model_sha256:
+        raise InputError(f"{model}: does not match its {CARD_JSON} (edited or broken)")
+
+
 def shipped_input(folder: Path, stage: str) -> InputRecord | None:
     """A shipped model's folder given where a stage reads the output of `stage` (a
     training stage: `evaluate mdn model=models/mdn/drawer`): its input record, with the
@@ -231,9 +237,7 @@ def shipped_input(folder: Path, stage: str) -> InputRecord | None:
     card = read_card(folder)
     if card.stage != stage:
         raise InputError(f"{folder}: a shipped {card.stage} model, not a {stage} one")
-    model = folder / MODEL_FILE
-    if not model.is_file() or sha256_file(model) != card.model_sha256:
-        raise InputError(f"{model}: does not match its {CARD_JSON} (edited or broken)")
+    _check_bytes(folder / MODEL_FILE, card)
     return InputRecord(path=str(folder), stage=card.stage, content_hash=card.model_sha256[:16])
 
 
@@ -332,8 +336,7 @@ def choose_model(
     found = _shipped_card(kind, category, store)
     if found is not None:
         shipped, card = _shipped(*found), found[1]
-        if not shipped.path.is_file() or sha256_file(shipped.path) != card.model_sha256:
-            raise InputError(f"{shipped.path}: does not match its {CARD_JSON} (edited or broken)")
+        _check_bytes(shipped.path, card)
         return ModelChoice(kind, shipped.path, "shipped", shipped, skipped)
     have = sorted(p.name for p in _folders((store or models_dir()) / kind))
     ships = f"shipped: {', '.join(have)}" if have else "none shipped"
