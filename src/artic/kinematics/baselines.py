@@ -70,7 +70,9 @@ class IcpBaseline:
         voxel_m: float = 0.02,
         max_distance_m: float = 0.1,
     ) -> None:
-        import open3d as o3d
+        from artic.render.open3d_core import open3d_core
+
+        o3d = open3d_core()
 
         from artic.render.raycast import RaycastBackend
 
@@ -112,7 +114,9 @@ class IcpBaseline:
             return self._predict(depth)
 
     def _predict(self, depth: NDArray[np.float32]) -> NDArray[np.float64]:
-        import open3d as o3d
+        from artic.render.open3d_core import open3d_core
+
+        o3d = open3d_core()
 
         reg = o3d.pipelines.registration
         points = _down_sample(self.camera.back_project(depth), self.voxel)
@@ -137,7 +141,9 @@ class IcpBaseline:
 
 
 def _down_sample(points: NDArray[np.float64], voxel_m: float) -> NDArray[np.float64]:
-    import open3d as o3d
+    from artic.render.open3d_core import open3d_core
+
+    o3d = open3d_core()
 
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     return np.asarray(cloud.voxel_down_sample(voxel_m).points)

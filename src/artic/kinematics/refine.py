@@ -459,8 +459,9 @@ def _ransac(points: Array, seed: int) -> NDArray[np.bool_]:
     keep = np.zeros(len(points), dtype=bool)
     if len(points) < MIN_FACE_POINTS:
         return keep
-    import open3d as o3d
+    from artic.render.open3d_core import open3d_core
 
+    o3d = open3d_core()
     o3d.utility.random.seed(seed)
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     _, inliers = cloud.segment_plane(RANSAC_DISTANCE, 3, RANSAC_ITERATIONS)
@@ -730,8 +731,11 @@ def refine_hypothesis(
 @functools.cache
 def _threadpools() -> Any:
     """threadpoolctl's controller (finding the loaded libraries once: ~4 ms each time)."""
-    import open3d  # noqa: F401  (loaded before the controller lists the libraries)
     from threadpoolctl import ThreadpoolController
+
+    from artic.render.open3d_core import open3d_core
+
+    open3d_core()  # loaded before the controller lists the libraries
 
     return ThreadpoolController()
 

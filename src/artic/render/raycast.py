@@ -19,15 +19,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import open3d as o3d
 from numpy.typing import NDArray
 
 from artic.geometry.camera import CameraIntrinsics
 from artic.geometry.transforms import invert, transform_points
 from artic.objects.model import ArticulatedObject
 from artic.render.backend import BackendBase, RenderedImage, register_backend
+from artic.render.open3d_core import open3d_core
+
+o3d = open3d_core()
 
 RAYS_PER_CALL = 1 << 14  # rays batched into one cast_rays call (larger ones lose cache)
 
@@ -42,7 +45,7 @@ class _Group:
     root: int
     part_ids: NDArray[np.uint8]  # geometry id -> part id + 1 (the mask value); last: 0
     vertices: NDArray[np.float64]  # all vertices, root frame (for the window)
-    scene: o3d.t.geometry.RaycastingScene
+    scene: Any  # Open3D's t.geometry.RaycastingScene
     #: the last single-pose cast and its pose, reused while the group does not move
     last: tuple[NDArray[np.float64], _Hits] | None = None
 
