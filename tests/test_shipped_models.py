@@ -84,3 +84,57 @@ def test_the_shipped_chapter_4_models_give_the_documented_tree(
     assert found["edges"] == [[0, 1], [0, 2]]
     assert found["motion_types"] == ["static", "rotating", "rotating"]
     assert found["joint_types"] == ["revolute", "revolute"]
+
+
+#: fixture images of objects no shipped MDN was trained on (tests/fixtures/mdn/make.py)
+MDN_FIXTURES = Path(__file__).parent / "fixtures" / "mdn"
+MDNS = sorted(p.name for p in FOLDERS if p.parent.name == "mdn")
+
+
+def documented_errors(card_figures: dict[str, str]) -> tuple[float, float]:
+    """The card's mean axis position (cm) and configuration error of the estimate
+    `artic predict` prints: the refined one where the card measured it, else the network's."""
+    row = card_figures.get("Ours + refinement pos/rot/config", card_figures["Ours pos/rot/config"])
+    position, _, configuration = (float(v) for v in row.split("/"))
+    return position, configuration
+
+
+def test_every_shipped_mdn_has_fixture_images():
+    assert MDNS and all((MDN_FIXTURES / f"{c}.json").is_file() for c in MDNS)
+
+
+@pytest.mark.parametrize("category", MDNS)
+def test_a_shipped_mdn_predicts_its_fixture_images_within_its_documented_error(
+    category: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+):
+    """`artic predict` on a fresh install: the shipped model, the refinement on (the
+    default), sixteen 16-bit PNGs of new objects; the median errors within the card's mean
+    errors and every hinge side right (kinematic_errors: evaluate mdn's metric)."""
+    import json
+    import time
+
+    import numpy as np
+
+    from artic.evaluation.kinematics import kinematic_errors
+    from artic.kinematics.predict import predict_image
+
+    monkeypatch.delenv("ARTIC_MODELS")
+    monkeypatch.chdir(tmp_path)  # no local models
+    truth = json.loads((MDN_FIXTURES / f"{category}.json").read_text())
+    camera = tmp_path / "camera.json"
+    camera.write_text(json.dumps(truth["camera"]))
+    columns, predicted = truth["columns"], []
+    for k in range(len(truth["labels"])):
+        image = MDN_FIXTURES / f"{category}_{k}.png"
+        result = predict_image(image, category, str(camera), None, None, 1000, "most-likely",
+                               0, time.perf_counter())  # fmt: skip
+        assert result["input"]["model_source"] == "shipped"
+        predicted.append([result["estimate"][c] for c in columns])
+    card = read_card(STORE / "mdn" / category)
+    errors = kinematic_errors(np.array(predicted), np.array(truth["labels"]), columns,
+                              card.config["category"]["dof"],
+                              card.config["category"]["joint_type"])  # fmt: skip
+    position, configuration = documented_errors(card.figures)
+    assert np.median(errors["position_cm"]) <= position
+    assert np.median(errors["configuration"]) <= configuration
+    assert not errors["hinge_side_wrong_pct"].any()
