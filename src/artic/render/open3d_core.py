@@ -29,6 +29,8 @@ from pathlib import Path
 from types import ModuleType
 
 CPU_BINDINGS = "open3d.cpu.pybind"
+#: the library every CUDA program needs to find a device
+NVIDIA_DRIVER = "libcuda.so.1"
 
 
 @functools.cache
@@ -63,11 +65,16 @@ def _package() -> ModuleType:
 
 def _cuda_device(root: Path | None, cpu: Path) -> bool:
     """True when Open3D's own import would take its CUDA bindings: the wheel has them,
-    they load, and they count a device (the test of open3d/__init__.py, which loads the
-    CPU library first to resolve the CUDA one's symbols)."""
+    the NVIDIA driver is installed, the bindings load and they count a device (the test
+    of open3d/__init__.py, which loads the CPU library first to resolve the CUDA one's
+    symbols)."""
     assert root is not None
     cuda = next(iter(sorted((root / "cuda").glob("pybind*.so"))), None)
     if cuda is None:
+        return False
+    try:  # no NVIDIA driver, no device: the 800 MB CUDA bindings are not loaded to count
+        CDLL(NVIDIA_DRIVER)
+    except OSError:
         return False
     try:
         CDLL(str(cpu))
