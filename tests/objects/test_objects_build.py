@@ -12,7 +12,7 @@ from artic.errors import InputError
 from artic.geometry.transforms import invert, transform_points
 from artic.objects.categories import CATEGORIES, build, get_builder, register_category
 from artic.objects.model import ArticulatedObject
-from artic.objects.parts import Box, mass_properties, union_mesh
+from artic.objects.parts import Box, lazy_mass_properties, mass_properties, union_mesh
 from artic.objects.spec import ObjectSpec
 
 CATEGORY_NAMES = ("cabinet", "drawer", "microwave", "toaster", "cabinet2", "refrigerator")
@@ -171,3 +171,39 @@ def test_build_is_deterministic(make_spec: SpecFactory, name: str) -> None:
         np.testing.assert_array_equal(la.mesh.vertices, lb.mesh.vertices)
         np.testing.assert_array_equal(la.mesh.triangles, lb.mesh.triangles)
         assert la.inertial.mass == lb.inertial.mass
+
+
+def test_mass_properties_are_computed_when_first_read(make_spec: SpecFactory):
+    import json
+    import pickle
+    import subprocess
+    import sys
+
+    # building an object to render it reads no mass property: no trimesh import (a fresh
+    # interpreter; this one has trimesh loaded)
+    code = (
+        "import json, sys\n"
+        "from artic.objects.categories import build\n"
+        "from artic.objects.spec import ObjectSpec, PartsConfig, Pose\n"
+        "spec = ObjectSpec(category='microwave', index=0, dof=1, joint_type='revolute',\n"
+        "    depth=0.4, width=0.6, height=0.35, chirality=1, pose=Pose(x=1.4, y=0, z=0, yaw=0),\n"
+        "    joint_limits=((0.0, 1.5),), parts=PartsConfig())\n"
+        "obj = build(spec)\n"
+        "before = 'trimesh' in sys.modules\n"
+        "mass = obj.links[0].inertial.mass\n"
+        "print(json.dumps([before, 'trimesh' in sys.modules, mass > 0]))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == [False, True, True]
+    # the values read are mass_properties' own, also after a pickle round trip unread
+    obj = build(make_spec("cabinet2", 0))
+    unread = pickle.loads(pickle.dumps(obj))
+    for link, copied in zip(obj.links, unread.links, strict=True):
+        eager = mass_properties(link.mesh, 500.0)
+        lazy = lazy_mass_properties(link.mesh, 500.0)
+        assert (lazy.mass, lazy.center_of_mass.tolist(), lazy.inertia.tolist()) == (
+            eager.mass, eager.center_of_mass.tolist(), eager.inertia.tolist())  # fmt: skip
+        assert copied.inertial.mass == link.inertial.mass
+        assert np.array_equal(copied.inertial.inertia, link.inertial.inertia)
+        assert np.array_equal(copied.inertial.center_of_mass, link.inertial.center_of_mass)

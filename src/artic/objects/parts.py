@@ -12,7 +12,7 @@ body is the plane x = -depth / 2.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -128,6 +128,33 @@ def mass_properties(mesh: TriangleMesh, density: float) -> Inertial:
         center_of_mass=np.asarray(solid.center_mass, dtype=np.float64) + 0.0,
         inertia=0.5 * (inertia + inertia.T) + 0.0,
     )
+
+
+class _LazyInertial(Inertial):
+    """An `Inertial` whose fields `mass_properties` computes on first read: building an
+    object to render it (the refinement builds two per image) reads none, and trimesh's
+    import alone costs ~0.8 s of an `artic predict` process on this machine."""
+
+    def __init__(self, mesh: TriangleMesh, density: float) -> None:  # fields: on first read
+        object.__setattr__(self, "_source", (mesh, density))
+
+    def __getattr__(self, name: str) -> Any:
+        # called only for attributes not set yet: the fields, until the first read
+        if name not in _INERTIAL_FIELDS or "_source" not in self.__dict__:
+            raise AttributeError(name)
+        computed = mass_properties(*self.__dict__["_source"])
+        for field in _INERTIAL_FIELDS:
+            object.__setattr__(self, field, getattr(computed, field))
+        return getattr(computed, name)
+
+
+_INERTIAL_FIELDS = ("mass", "center_of_mass", "inertia")
+
+
+def lazy_mass_properties(mesh: TriangleMesh, density: float) -> Inertial:
+    """`mass_properties(mesh, density)`, computed when a field is first read (the same
+    values; a mesh that is not watertight raises then)."""
+    return _LazyInertial(mesh, density)
 
 
 def shell_boxes(depth: float, width: float, height: float, wall: float) -> list[Box]:
@@ -261,7 +288,7 @@ def drawer(
 
 def _link(name: str, role: str, boxes: Sequence[Box], density: float) -> Link:
     mesh = union_mesh(boxes)
-    return Link(name=name, role=role, mesh=mesh, inertial=mass_properties(mesh, density))
+    return Link(name=name, role=role, mesh=mesh, inertial=lazy_mass_properties(mesh, density))
 
 
 def assemble(

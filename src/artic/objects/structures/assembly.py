@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from artic.geometry.transforms import make_transform
 from artic.objects.model import ArticulatedObject, Joint, Link, UrdfJointType
-from artic.objects.parts import Box, MovingPart, handle_boxes, mass_properties, union_mesh
+from artic.objects.parts import Box, MovingPart, handle_boxes, lazy_mass_properties, union_mesh
 from artic.objects.spec import PartsConfig
 
 
@@ -89,7 +89,7 @@ def assemble_tree(
                 name=node.name,
                 role=node.role,
                 mesh=mesh,
-                inertial=mass_properties(mesh, node.density),
+                inertial=lazy_mass_properties(mesh, node.density),
             )
         )
         if node.parent < 0:
