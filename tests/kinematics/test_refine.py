@@ -87,6 +87,23 @@ def test_posed_renderer_gives_the_images_of_a_freshly_built_object():
         renderer.close()
 
 
+def test_hypotheses_rendered_together_are_the_images_rendered_one_at_a_time():
+    # the drawer's line searches render their hypotheses in one call per rigid group
+    start = Hypothesis(1.4, 0.05, -0.45, 0.3, 0.4, 0.6, 0.35, 1, 0.1, "prismatic")
+    moves = [start.with_pose(1.4 + d, 0.05 - d, -0.45 + d / 2, 0.3, 0.1 + d)
+             for d in np.linspace(-0.05, 0.11, 9)]  # fmt: skip
+    renderer = PosedRenderer(start, "drawer", PARTS, CAMERA)
+    try:
+        together = renderer.render_many([start, *moves, start])
+        for h, image in zip([start, *moves, start], together, strict=True):
+            alone, _ = renderer.render(h)
+            np.testing.assert_array_equal(image.depth, alone.depth)
+            np.testing.assert_array_equal(image.part_mask, alone.part_mask)
+        assert len({image.depth.tobytes() for image in together}) == len(moves) + 1
+    finally:
+        renderer.close()
+
+
 @pytest.mark.parametrize("category", ["microwave", "cabinet"])
 @pytest.mark.parametrize("chirality", [1, -1])
 @pytest.mark.parametrize("q", [0.25, 1.1])

@@ -69,7 +69,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -80,7 +80,7 @@ from artic.geometry.camera import CameraIntrinsics
 from artic.geometry.transforms import make_transform, rot_z
 from artic.objects.model import ArticulatedObject, Joint
 from artic.objects.spec import ObjectSpec, PartsConfig, Pose
-from artic.render.backend import DepthBackend, RenderedImage
+from artic.render.backend import RenderedImage
 
 #: the categories refined and their joint: one door on a vertical hinge (chirality =
 #: hinge side) or one drawer (`_fit`, "A drawer")
@@ -308,12 +308,12 @@ class PosedRenderer:
     def __init__(self, hypothesis: Hypothesis, category: str, parts: PartsConfig,
                  camera: CameraIntrinsics) -> None:  # fmt: skip
         from artic.objects.categories import build
-        from artic.render.backend import make_backend
+        from artic.render.raycast import RaycastBackend
 
         self.geometry = (hypothesis.depth, hypothesis.width, hypothesis.height)
         self.chirality = hypothesis.chirality
         self.object: ArticulatedObject = build(hypothesis.spec(category, parts))
-        self.backend: DepthBackend = make_backend("raycast", camera)
+        self.backend = RaycastBackend(camera)
         #: the door's (or drawer's) joint; its frame's point in the body frame (3,)
         self.joint = self.object.movable_joints[0]
         self.joint_origin = self.joint.origin[:3, 3].copy()
@@ -329,6 +329,14 @@ class PosedRenderer:
             raise ValueError("PosedRenderer: another geometry or hinge side")
         posed = dataclasses.replace(self.object, base_pose=h.pose_matrix())
         return self.backend.render(posed, np.array([h.q])), h.door_pose(self.joint)
+
+    def render_many(self, hs: Sequence[Hypothesis]) -> list[RenderedImage]:
+        """The images of `hs` (this geometry each), cast together (`render_posed`): the
+        same images as `render` one at a time."""
+        if not all(self.fits(h) for h in hs):
+            raise ValueError("PosedRenderer: another geometry or hinge side")
+        qs = np.array([[h.q] for h in hs], dtype=np.float64)
+        return self.backend.render_posed(self.object, [h.pose_matrix() for h in hs], qs)
 
     def label(self, h: Hypothesis, category: str, columns: list[str]) -> Array:
         """The label vector (L,) of `h` in `columns` order, every column consistent with
@@ -643,8 +651,8 @@ def _line_search(
     part the image does not show: the same render), the smallest move."""
 
     def best(values: Array) -> float:
-        residuals = [depth_residual(renderer.render(move(float(d)))[0].depth, observed)
-                     for d in values]  # fmt: skip
+        images = renderer.render_many([move(float(d)) for d in values])
+        residuals = [depth_residual(image.depth, observed) for image in images]
         return float(values[np.lexsort((np.abs(values), np.asarray(residuals)))[0]])
 
     coarse = np.unique(np.concatenate([np.arange(0.0, low - 1e-9, -SEARCH_STEP),

@@ -16,7 +16,9 @@ its pose (the body) is cast once.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -120,10 +122,29 @@ class RaycastBackend(BackendBase):
         urdf_path: Path | None = None,
     ) -> list[RenderedImage]:
         qs = np.asarray(configurations, dtype=np.float64).reshape(len(configurations), -1)
-        n, shape = len(qs), (self.camera.height, self.camera.width)
+        return self._render_link_poses(obj, [obj.link_poses(q) for q in qs])
+
+    def render_posed(
+        self,
+        obj: ArticulatedObject,
+        base_poses: Sequence[NDArray[np.float64]],
+        configurations: NDArray[np.float64],
+    ) -> list[RenderedImage]:
+        """The images of `obj` at each (4, 4) base pose with its configuration (one row of
+        `configurations` each), cast together as `render_many`'s: the same images as
+        rendering `dataclasses.replace(obj, base_pose=...)` one at a time."""
+        qs = np.asarray(configurations, dtype=np.float64).reshape(len(configurations), -1)
+        poses = [dataclasses.replace(obj, base_pose=base).link_poses(q)
+                 for base, q in zip(base_poses, qs, strict=True)]  # fmt: skip
+        return self._render_link_poses(obj, poses)
+
+    def _render_link_poses(
+        self, obj: ArticulatedObject, poses: list[list[NDArray[np.float64]]]
+    ) -> list[RenderedImage]:
+        """One image per entry of `poses` (each: every link's camera-frame pose)."""
+        n, shape = len(poses), (self.camera.height, self.camera.width)
         depth = np.full((n, *shape), np.inf, dtype=np.float32)
         mask = np.zeros((n, *shape), dtype=np.uint8)
-        poses = [obj.link_poses(q) for q in qs]
         for group in self._scenes(obj):
             group_poses = [p[group.root] for p in poses]
             for k, (rows, cols, t, parts) in enumerate(self._cast(group, group_poses)):
