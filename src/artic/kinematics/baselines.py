@@ -71,11 +71,9 @@ class IcpBaseline:
         max_distance_m: float = 0.1,
     ) -> None:
         from artic.render.open3d_core import open3d_core
-
-        o3d = open3d_core()
-
         from artic.render.raycast import RaycastBackend
 
+        o3d = open3d_core()
         columns = label_columns(template.dof)
         col = {c: i for i, c in enumerate(columns)}
         mean = train_labels.mean(axis=0)
