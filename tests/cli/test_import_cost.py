@@ -19,31 +19,13 @@ from test_infer_hierarchy import save_models
 from artic.artifacts.ply import write_ply
 from artic.cli.main import ONE_SCAN_COMMANDS, app
 from box_clouds import box_cloud
+from fresh_python import in_fresh_python, loaded_after
 
 #: loaded only by the step that uses them: the labeller (torch_geometric), the joint axes
 #: and URDF meshes (trimesh, which brings scipy.optimize), hierarchy.png (matplotlib)
 STEP_LIBRARIES = ("torch_geometric", "trimesh", "matplotlib", "scipy.optimize")
 #: never needed by these commands
 OTHER_LIBRARIES = ("open3d", "pybullet", "hydra", "omegaconf", "sympy", "pandas")
-
-
-def in_fresh_python(code: str, env: dict[str, str] | None = None) -> object:
-    """The JSON `code` prints, run by a fresh interpreter."""
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
-    )
-    return json.loads(out.stdout.strip().splitlines()[-1])
-
-
-def loaded_after(statement: str, names: tuple[str, ...]) -> list[str]:
-    """Which of `names` (modules or packages) are loaded after `statement`."""
-    code = (
-        f"import json, sys\n{statement}\n"
-        f"names = {list(names)!r}\n"
-        "print(json.dumps([n for n in names if any(m == n or m.startswith(n + '.') "
-        "for m in sys.modules)]))"
-    )
-    return list(in_fresh_python(code))  # type: ignore[call-overload]
 
 
 def test_the_cli_entry_point_imports_no_numerical_library() -> None:

@@ -14,6 +14,7 @@ from artic.objects.categories import CATEGORIES, build, get_builder, register_ca
 from artic.objects.model import ArticulatedObject
 from artic.objects.parts import Box, lazy_mass_properties, mass_properties, union_mesh
 from artic.objects.spec import ObjectSpec
+from fresh_python import in_fresh_python
 
 CATEGORY_NAMES = ("cabinet", "drawer", "microwave", "toaster", "cabinet2", "refrigerator")
 SEEDS = (0, 1, 2)
@@ -174,10 +175,7 @@ def test_build_is_deterministic(make_spec: SpecFactory, name: str) -> None:
 
 
 def test_mass_properties_are_computed_when_first_read(make_spec: SpecFactory):
-    import json
     import pickle
-    import subprocess
-    import sys
 
     # building an object to render it reads no mass property: no trimesh import (a fresh
     # interpreter; this one has trimesh loaded)
@@ -193,9 +191,7 @@ def test_mass_properties_are_computed_when_first_read(make_spec: SpecFactory):
         "mass = obj.links[0].inertial.mass\n"
         "print(json.dumps([before, 'trimesh' in sys.modules, mass > 0]))"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    assert json.loads(done.stdout.strip().splitlines()[-1]) == [False, True, True]
+    assert in_fresh_python(code) == [False, True, True]
     # the values read are mass_properties' own, also after a pickle round trip unread
     obj = build(make_spec("cabinet2", 0))
     unread = pickle.loads(pickle.dumps(obj))

@@ -5,27 +5,14 @@ refinement, renderer and baselines reach Open3D. Checks run in a fresh interpret
 
 from __future__ import annotations
 
-import json
 import re
-import subprocess
-import sys
 from pathlib import Path
+
+from fresh_python import in_fresh_python, loaded_code
 
 #: what `import open3d` brings beside the bindings, which artic never uses
 EXTRAS = ("open3d.ml", "open3d.visualization", "sklearn")
-
-
-def in_fresh_python(code: str) -> object:
-    """The JSON the last line of `code`'s output holds, run by a fresh interpreter."""
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.strip().splitlines()[-1])
-
-
-LOADED = (
-    f"extras = {list(EXTRAS)!r}\n"
-    "loaded = [n for n in extras if any(m == n or m.startswith(n + '.') for m in sys.modules)]\n"
-)
+LOADED = loaded_code(EXTRAS)
 
 
 def test_the_bindings_load_without_the_packages_extras_and_are_open3ds_own() -> None:
