@@ -325,14 +325,11 @@ class PosedRenderer:
 
     def render(self, h: Hypothesis) -> tuple[RenderedImage, Array]:
         """The image of `h` and the door link's pose (4, 4)."""
-        if not self.fits(h):
-            raise ValueError("PosedRenderer: another geometry or hinge side")
-        posed = dataclasses.replace(self.object, base_pose=h.pose_matrix())
-        return self.backend.render(posed, np.array([h.q])), h.door_pose(self.joint)
+        return self.render_many([h])[0], h.door_pose(self.joint)
 
     def render_many(self, hs: Sequence[Hypothesis]) -> list[RenderedImage]:
         """The images of `hs` (this geometry each), cast together (`render_posed`): the
-        same images as `render` one at a time."""
+        same images as rendering each one alone."""
         if not all(self.fits(h) for h in hs):
             raise ValueError("PosedRenderer: another geometry or hinge side")
         qs = np.array([[h.q] for h in hs], dtype=np.float64)

@@ -37,20 +37,20 @@ NVIDIA_DRIVER = "libcuda.so.1"
 def open3d_core() -> ModuleType:
     """Open3D's compiled bindings (module docstring): `open3d_core().t.geometry
     .RaycastingScene`, `open3d_core().geometry.PointCloud`, ... as on `open3d`."""
-    if "open3d" in sys.modules:
-        return _package()
     spec = importlib.util.find_spec("open3d")
-    root = Path(spec.origin).parent if spec is not None and spec.origin else None
-    cpu = next(iter(sorted((root / "cpu").glob("pybind*.so"))), None) if root else None
+    if "open3d" in sys.modules or spec is None or not spec.origin:
+        return _package()
+    root = Path(spec.origin).parent
+    cpu = _bindings(root / "cpu")
     if cpu is None or _cuda_device(root, cpu):
         return _package()
     # what open3d/__init__.py sets before loading its bindings
     os.environ["KMP_DUPLICATE_LIB_OK"] = "True"
     os.environ["TCM_ENABLE"] = "1"
     loader = importlib.machinery.ExtensionFileLoader(CPU_BINDINGS, str(cpu))
-    spec = importlib.util.spec_from_loader(CPU_BINDINGS, loader)
-    assert spec is not None
-    module = importlib.util.module_from_spec(spec)
+    bindings_spec = importlib.util.spec_from_loader(CPU_BINDINGS, loader)
+    assert bindings_spec is not None
+    module = importlib.util.module_from_spec(bindings_spec)
     loader.exec_module(module)
     sys.modules[CPU_BINDINGS] = module
     return module
@@ -63,13 +63,17 @@ def _package() -> ModuleType:
     return bindings
 
 
-def _cuda_device(root: Path | None, cpu: Path) -> bool:
+def _bindings(folder: Path) -> Path | None:
+    """The compiled bindings' file in one of the wheel's device folders, if any."""
+    return next(iter(sorted(folder.glob("pybind*.so"))), None)
+
+
+def _cuda_device(root: Path, cpu: Path) -> bool:
     """True when Open3D's own import would take its CUDA bindings: the wheel has them,
     the NVIDIA driver is installed, the bindings load and they count a device (the test
     of open3d/__init__.py, which loads the CPU library first to resolve the CUDA one's
     symbols)."""
-    assert root is not None
-    cuda = next(iter(sorted((root / "cuda").glob("pybind*.so"))), None)
+    cuda = _bindings(root / "cuda")
     if cuda is None:
         return False
     try:  # no NVIDIA driver, no device: the 800 MB CUDA bindings are not loaded to count
