@@ -48,9 +48,9 @@ def test_rendering_and_the_refinements_plane_fit_load_only_the_bindings() -> Non
         "from artic.objects.spec import PartsConfig\n"
         "from artic.render.raycast import RaycastBackend\n"
         "camera = CameraIntrinsics(fx=105.4, fy=105.4, cx=95.5, cy=53.5, width=192, height=108)\n"
-        "h = Hypothesis(1.4, 0.05, -0.45, 0.3, 0.4, 0.6, 0.35, 1, 0.5)\n"
+        "h = Hypothesis(1.4, 0.05, -0.45, 0.3, 0.4, 0.6, 0.35, 1, (0.5,))\n"
         "obj = build(h.spec('microwave', PartsConfig()))\n"
-        "points = camera.back_project(RaycastBackend(camera).render(obj, np.array([h.q])).depth)\n"
+        "points = camera.back_project(RaycastBackend(camera).render(obj, np.array(h.qs)).depth)\n"
         "inliers = int(_ransac(points, seed=0).sum())\n" + LOADED +
         "print(json.dumps([loaded, len(points) > 0 and inliers > 0]))"
     )  # fmt: skip

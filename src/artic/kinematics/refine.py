@@ -1,7 +1,7 @@
-"""Test-time geometric refinement of a one-door estimate (issue 19, item 1).
+"""Test-time geometric refinement of a door or drawer estimate (issue 19, item 1).
 
 The network proposes, the depth image decides. From a hypothesis (a label vector: base
-pose x, y, z, yaw, the body's depth, width, height, the chirality and the door's q):
+pose x, y, z, yaw, the body's depth, width, height, the chirality and each door's q):
 
 1. render the hypothesis with the raycast backend (`render.backend`): which pixels are
    the body's front, its sides and the door's broad faces, and where each of those faces
@@ -14,21 +14,25 @@ pose x, y, z, yaw, the body's depth, width, height, the chirality and the door's
      together (the front normal is the eigenvector of the smallest eigenvalue of
      C_front - C_side, C the faces' horizontal scatter matrices, each parallel plane about
      its own mean), refitted once without the points beyond 3 robust deviations;
-   - the configuration q from the angle between the door's plane and the body's front
-     (the door's normal is the front's turned by c q about z, c the chirality);
+   - each door's q from the angle between its plane and the body's front (the door's
+     normal is the front's turned by s q about z, s its axis' sign along z: the
+     chirality for a one-door object, +1 and -1 for the two-door cabinet's doors);
    - the base position (x, y) by least squares over every face's inlier points, each on
      its face's plane in the object frame (front x = -depth/2, or the control panel's
      -depth/2 - door thickness; side y = +-width/2; door x = -door thickness or 0 in the
      door's frame, which puts the hinge line where the door's plane meets the body's
-     front), with a small pull towards the hypothesis so that a position the image does
-     not fix (along a closed door's front with no side in view) stays the network's;
-   - the base height z from the bottom silhouette edge (`_bottom_edge`: every face ends at
-     the base); depth, width and height stay the network's;
+     front; every door's points join), with a small pull towards the hypothesis so that a
+     position the image does not fix (along a closed door's front with no side in view)
+     stays the network's;
+   - the base height z from the bottom silhouette edge (`_bottom_edge`: every face that
+     stands on the base ends there: the body's, and each door hinged at the base, not a
+     refrigerator's upper door); depth, width and height stay the network's;
 3. re-render and repeat (`ITERATIONS`, with a shrinking tolerance), keeping the round
    (or the start) with the lowest depth residual.
 
-It runs from the mixture's top components (up to `COMPONENTS`) and both hinge sides
-(each component's chirality and the other, all else equal; for the top component also
+It runs from the mixture's top components (up to `COMPONENTS`) and, for a category with a
+hinge side to decide (`SIDED`), both hinge sides (each component's chirality and the
+other, all else equal; for the top component also
 its mirror image about the line of sight, `Hypothesis.reflected`: a network trained on
 one side may read an object hinged on the other side as that), scores every candidate by
 a robust depth residual (`depth_residual`: the mean over the union of the rendered and
@@ -41,9 +45,10 @@ component mean has, as with a model trained on one side, has no interval there a
 judged by its residual alone), or when the chosen candidate's residual is not below the
 network's own: the returned estimate's residual is never larger than the network's.
 
-On a nearly closed door the handle then has the last word on the hinge side
-(`handle_side`): a door is pulled open at its free edge, so its handle (a knob or bar
-standing proud of the door's front) lies near the edge away from the hinge. For the best
+On a nearly closed door (every door, for a refrigerator) the handle then has the last word
+on the hinge side (`handle_side`; the first door's handle, a refrigerator's lower one): a
+door is pulled open at its free edge, so its handle (a knob or bar standing proud of the
+door's front) lies near the edge away from the hinge. For the best
 candidate of each side whose door is open less than `HANDLE_Q_MAX` (and whose residual is
 near the best), the pixels of the image in its own camera (`detail`: `artic predict`
 passes the image before it was reduced into the model's camera, where a knob is a pixel or
@@ -60,8 +65,10 @@ A drawer (`JOINT_TYPES`) takes the same rounds with its front in place of the do
 plane, one start per component (no hinge sides, no handle test), and a search on the
 depth residual along its opening, across its front and up (`search_opening`, `_fit_drawer`).
 
-Supported: the one-door, vertical-hinge categories and the drawer (`SUPPORTED`); others
-return the network's estimate with a status saying so.
+Supported: the categories with doors on vertical hinges (one door; the two-door cabinet's
+side by side, each hinged at its outer edge; the refrigerator's one above the other, both on
+its hinge side) and the drawer (`SUPPORTED`); the toaster (a door hinged at its bottom)
+returns the network's estimate with a status saying so.
 """
 
 from __future__ import annotations
@@ -69,6 +76,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -82,10 +90,17 @@ from artic.objects.model import ArticulatedObject, Joint
 from artic.objects.spec import ObjectSpec, PartsConfig, Pose
 from artic.render.backend import RenderedImage
 
-#: the categories refined and their joint: one door on a vertical hinge (chirality =
-#: hinge side) or one drawer (`_fit`, "A drawer")
-JOINT_TYPES = {"cabinet": "revolute", "microwave": "revolute", "drawer": "prismatic"}
+#: the categories refined and their joints: doors on vertical hinges (one, or the two-door
+#: cabinet's side by side, or the refrigerator's one above the other) or one drawer
+#: (`_fit`, "A drawer")
+JOINT_TYPES = {
+    "cabinet": "revolute", "microwave": "revolute", "cabinet2": "revolute",
+    "refrigerator": "revolute", "drawer": "prismatic",
+}  # fmt: skip
 SUPPORTED = tuple(JOINT_TYPES)
+#: the categories whose chirality is a hinge side to decide (both sides are tried, the
+#: handle has a say); the two-door cabinet's doors are hinged at its outer edges
+SIDED = ("cabinet", "microwave", "refrigerator")
 #: render-assign-fit rounds per candidate
 ITERATIONS = 3
 #: an observed point joins a face when within this of its plane (m), per round
@@ -166,7 +181,8 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Hypothesis:
-    """One object hypothesis: base pose, geometry, hinge side and configuration."""
+    """One object hypothesis: base pose, geometry, hinge side and configuration (one q
+    per movable joint, in joint order)."""
 
     x: float
     y: float
@@ -176,7 +192,7 @@ class Hypothesis:
     width: float
     height: float
     chirality: int
-    q: float
+    qs: tuple[float, ...]
     joint_type: str = "revolute"
 
     @classmethod
@@ -184,18 +200,21 @@ class Hypothesis:
         cls, label: Array, columns: list[str], joint_type: str = "revolute"
     ) -> Hypothesis:
         """From a label vector (L,) with `columns` (docs/formats.md); sizes floored at
-        10 cm (an object's walls need room), q clipped to its range (`q_max`)."""
+        10 cm (an object's walls need room), each q clipped to its range (`q_max`)."""
         v = dict(zip(columns, np.asarray(label, dtype=np.float64).tolist(), strict=True))
         depth = max(v["depth"], 0.1)
+        top = q_max(joint_type, depth)
+        qs = tuple(float(np.clip(v[f"j{j}_q"], 0.0, top)) for j in range(joint_count(columns)))
         return cls(
             v["pose_x"], v["pose_y"], v["pose_z"], v["pose_yaw"],
             depth, max(v["width"], 0.1), max(v["height"], 0.1),
-            1 if v["chirality"] >= 0 else -1,
-            float(np.clip(v["j0_q"], 0.0, q_max(joint_type, depth))), joint_type,
+            1 if v["chirality"] >= 0 else -1, qs, joint_type,
         )  # fmt: skip
 
-    def with_pose(self, x: float, y: float, z: float, yaw: float, q: float) -> Hypothesis:
-        return dataclasses.replace(self, x=x, y=y, z=z, yaw=yaw, q=q)
+    def with_pose(
+        self, x: float, y: float, z: float, yaw: float, qs: tuple[float, ...]
+    ) -> Hypothesis:
+        return dataclasses.replace(self, x=x, y=y, z=z, yaw=yaw, qs=qs)
 
     def mirrored(self) -> Hypothesis:
         """The other hinge side, all else equal."""
@@ -212,18 +231,25 @@ class Hypothesis:
         """(4, 4) object-to-camera transform."""
         return make_transform(rot_z(self.yaw), np.array([self.x, self.y, self.z]))
 
-    def door_pose(self, joint: Joint) -> Array:
-        """(4, 4) the door's (or drawer's) link pose in the camera frame, `joint` the
-        object's movable joint: turned about (or moved along) its axis by q."""
-        return self.pose_matrix() @ joint.origin @ joint.motion(self.q)
+    def door_poses(self, joints: Sequence[Joint]) -> list[Array]:
+        """(4, 4) each door's (or the drawer's) link pose in the camera frame, `joints`
+        the object's movable joints: each turned about (or moved along) its axis by its q."""
+        pose = self.pose_matrix()
+        return [pose @ j.origin @ j.motion(q) for j, q in zip(joints, self.qs, strict=True)]
 
     def spec(self, category: str, parts: PartsConfig) -> ObjectSpec:
+        limits = ((0.0, q_max(self.joint_type, self.depth)),) * len(self.qs)
         return ObjectSpec(
-            category=category, index=0, dof=1, joint_type=self.joint_type, depth=self.depth,
-            width=self.width, height=self.height, chirality=self.chirality,
+            category=category, index=0, dof=len(self.qs), joint_type=self.joint_type,
+            depth=self.depth, width=self.width, height=self.height, chirality=self.chirality,
             pose=Pose(x=self.x, y=self.y, z=self.z, yaw=self.yaw),
-            joint_limits=((0.0, q_max(self.joint_type, self.depth)),), parts=parts,
+            joint_limits=limits, parts=parts,
         )  # fmt: skip
+
+
+def joint_count(columns: Sequence[str]) -> int:
+    """The number of movable joints a label's `columns` describe (one `j<j>_q` each)."""
+    return sum(1 for c in columns if re.fullmatch(r"j\d+_q", c))
 
 
 def q_max(joint_type: str, depth: float) -> float:
@@ -314,25 +340,25 @@ class PosedRenderer:
         self.chirality = hypothesis.chirality
         self.object: ArticulatedObject = build(hypothesis.spec(category, parts))
         self.backend = RaycastBackend(camera)
-        #: the door's (or drawer's) joint; its frame's point in the body frame (3,)
-        self.joint = self.object.movable_joints[0]
-        self.joint_origin = self.joint.origin[:3, 3].copy()
+        #: the doors' (or the drawer's) joints, in joint order
+        self.joints = self.object.movable_joints
+        self.doors = tuple(_Door.of(self.object, joint) for joint in self.joints)
         self.parts = parts
         self.door_thickness = parts.door_thickness
 
     def fits(self, h: Hypothesis) -> bool:
         return (h.depth, h.width, h.height) == self.geometry and h.chirality == self.chirality
 
-    def render(self, h: Hypothesis) -> tuple[RenderedImage, Array]:
-        """The image of `h` and the door link's pose (4, 4)."""
-        return self.render_many([h])[0], h.door_pose(self.joint)
+    def render(self, h: Hypothesis) -> tuple[RenderedImage, list[Array]]:
+        """The image of `h` and each door link's pose (4, 4)."""
+        return self.render_many([h])[0], h.door_poses(self.joints)
 
     def render_many(self, hs: Sequence[Hypothesis]) -> list[RenderedImage]:
         """The images of `hs` (this geometry each), cast together (`render_posed`): the
         same images as rendering each one alone."""
         if not all(self.fits(h) for h in hs):
             raise ValueError("PosedRenderer: another geometry or hinge side")
-        qs = np.array([[h.q] for h in hs], dtype=np.float64)
+        qs = np.array([h.qs for h in hs], dtype=np.float64)
         return self.backend.render_posed(self.object, [h.pose_matrix() for h in hs], qs)
 
     def label(self, h: Hypothesis, category: str, columns: list[str]) -> Array:
@@ -343,11 +369,32 @@ class PosedRenderer:
         if not self.fits(h):
             raise ValueError("PosedRenderer: another geometry or hinge side")
         posed = dataclasses.replace(self.object, base_pose=h.pose_matrix())
-        labels = image_labels(h.spec(category, self.parts), posed, np.array([h.q]))
+        labels = image_labels(h.spec(category, self.parts), posed, np.array(h.qs))
         return np.array([labels[c] for c in columns], dtype=np.float64)
 
     def close(self) -> None:
         self.backend.close()
+
+
+@dataclass(frozen=True)
+class _Door:
+    """What the fits need of one movable joint: its frame's point in the body frame (3,),
+    the part mask's value for its link (`RenderedImage.part_mask`), the sign of its axis
+    along the body's z (a door's normal is the body front's turned by sign x q about z),
+    and whether its link stands on the base (its faces end at the bottom edge)."""
+
+    origin: Array
+    part: int
+    sign: int
+    at_base: bool
+
+    @classmethod
+    def of(cls, obj: ArticulatedObject, joint: Joint) -> _Door:
+        names = [link.name for link in obj.links]
+        axis_z = float((joint.origin[:3, :3] @ joint.axis)[2])
+        origin = joint.origin[:3, 3].copy()
+        return cls(origin, names.index(joint.child) + 1, 1 if axis_z >= 0 else -1,
+                   abs(float(origin[2])) < FACE_EPS)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -359,13 +406,15 @@ class _Faces:
     side: tuple[Array, Array]
     #: the base's height (camera z) read at each bottom silhouette edge pixel (K,)
     bottom: Array
-    door: tuple[Array, Array]
+    #: each door's broad faces (or the drawer's front), in joint order
+    doors: tuple[tuple[Array, Array], ...]
 
 
 def _faces(
     h: Hypothesis,
     image: RenderedImage,
-    door_pose: Array,
+    door_poses: Sequence[Array],
+    doors: Sequence[_Door],
     observed: NDArray[np.floating],
     rays: NDArray[np.float32],
     tolerance: float,
@@ -382,8 +431,6 @@ def _faces(
     # object-frame and door-frame coordinates of the rendered and the observed points
     body = (p_rendered - pose[:3, 3]) @ pose[:3, :3]
     body_seen = (p_observed - pose[:3, 3]) @ pose[:3, :3]
-    door = (p_rendered - door_pose[:3, 3]) @ door_pose[:3, :3]
-    door_seen = (p_observed - door_pose[:3, 3]) @ door_pose[:3, :3]
     part = mask[rows, cols]
     is_body = part == 1
 
@@ -393,25 +440,31 @@ def _faces(
 
     front = is_body & (body[:, 0] < -h.depth / 2 + FACE_EPS)
     side = is_body & ~front & (np.abs(body[:, 1]) > h.width / 2 - FACE_EPS)
-    if h.joint_type == "prismatic":
-        # a drawer's front (x = 0 in its frame); its bottom is above the base
-        door_front = (part == 2) & (np.abs(door[:, 0]) < FACE_EPS)
-        ends_at_base = front | side
-    else:
-        # either broad face of the door: its front (x = -thickness) or, opened far, its back
-        door_front = (part == 2) & (
-            (np.abs(door[:, 0] + thickness) < FACE_EPS) | (np.abs(door[:, 0]) < FACE_EPS)
-        )
-        ends_at_base = front | side | door_front
+    ends_at_base = front | side
+    door_faces = []
+    for door_pose, door in zip(door_poses, doors, strict=True):
+        local = (p_rendered - door_pose[:3, 3]) @ door_pose[:3, :3]
+        local_seen = (p_observed - door_pose[:3, 3]) @ door_pose[:3, :3]
+        if h.joint_type == "prismatic":
+            # a drawer's front (x = 0 in its frame); its bottom is above the base
+            on = (part == door.part) & (np.abs(local[:, 0]) < FACE_EPS)
+        else:
+            # either broad face of a door: its front (x = -thickness) or, opened far, its back
+            on = (part == door.part) & (
+                (np.abs(local[:, 0] + thickness) < FACE_EPS) | (np.abs(local[:, 0]) < FACE_EPS)
+            )
+            if door.at_base:
+                ends_at_base = ends_at_base | on
+        on &= near(local, local_seen, 0)
+        door_faces.append((p_observed[on], local[on, 0]))
     front &= near(body, body_seen, 0)
     side &= near(body, body_seen, 1)
     bottom = _bottom_edge(rows, cols, ends_at_base, observed, rendered, rays)
-    door_front &= near(door, door_seen, 0)
     return _Faces(
         (p_observed[front], body[front, 0]),
         (p_observed[side], body[side, 1]),
         bottom,
-        (p_observed[door_front], door[door_front, 0]),
+        tuple(door_faces),
     )
 
 
@@ -558,52 +611,50 @@ def _fit_yaw(
 
 
 def _fit(
-    h: Hypothesis, faces: _Faces, joint_origin: Array, seed: int, rim: bool = True
+    h: Hypothesis, faces: _Faces, doors: Sequence[_Door], seed: int, rim: bool = True
 ) -> Hypothesis:
     """One least-squares step (module docstring, step 2) from the grouped points; a
     drawer's without its body's front rim unless `rim` (`refine_hypothesis`)."""
-    inl = {
-        name: _ransac(getattr(faces, name)[0], seed + k)
-        for k, name in enumerate(("front", "side", "door"))
-    }
+    inl_front = _ransac(faces.front[0], seed)
+    inl_side = _ransac(faces.side[0], seed + 1)
+    inl_doors = [_ransac(pts, seed + 2 + j) for j, (pts, _) in enumerate(faces.doors)]
     if h.joint_type == "prismatic":
         if not rim:
-            inl["front"] = np.zeros_like(inl["front"])
-        return _fit_drawer(h, faces, inl, joint_origin)
+            inl_front = np.zeros_like(inl_front)
+        return _fit_drawer(h, faces, inl_front, inl_side, inl_doors[0], doors[0].origin)
     # yaw from the body's vertical faces: front normal n minimises n'C_f n + n_perp'C_s n_perp
-    yaw, inl["front"], inl["side"] = _fit_yaw(h, faces.front, inl["front"], faces.side,
-                                              inl["side"])  # fmt: skip
-    # q from the door's front normal against the body's front (normal turned by c q)
-    q = h.q
-    if inl["door"].sum() >= MIN_DOOR_POINTS:
-        no_side = (np.zeros((0, 3)), np.zeros(0))
-        n_door, inl["door"], _ = _robust_normal(faces.door, inl["door"], no_side,
-                                                np.zeros(0, dtype=bool))  # fmt: skip
-        options = [h.chirality * _wrap(_angle(s * n_door) - (yaw + math.pi)) for s in (1.0, -1.0)]
-        q = float(np.clip(min(options, key=lambda v: abs(v - h.q)), 0.0, Q_MAX))
-    # base position: each inlier on its face's plane, plus a pull towards the hypothesis
+    yaw, inl_front, inl_side = _fit_yaw(h, faces.front, inl_front, faces.side, inl_side)
     rot = rot_z(yaw)
-    door_rot = rot @ rot_z(h.chirality * q)
     rows: list[Array] = []
     rhs: list[Array] = []
     pts, offset = faces.front
     a = rot[:, 0]  # object x in the camera frame
-    rows.append(np.tile(a, (int(inl["front"].sum()), 1)))
-    rhs.append(pts[inl["front"]] @ a - offset[inl["front"]])
+    rows.append(np.tile(a, (int(inl_front.sum()), 1)))
+    rhs.append(pts[inl_front] @ a - offset[inl_front])
     pts, offset = faces.side
     a = rot[:, 1]
-    rows.append(np.tile(a, (int(inl["side"].sum()), 1)))
-    rhs.append(pts[inl["side"]] @ a - offset[inl["side"]])
-    pts, offset = faces.door
-    a = door_rot[:, 0]  # the door's x: x_door = a . (p - t - R o_joint)
-    rows.append(np.tile(a, (int(inl["door"].sum()), 1)))
-    rhs.append(pts[inl["door"]] @ a - a @ (rot @ joint_origin) - offset[inl["door"]])
+    rows.append(np.tile(a, (int(inl_side.sum()), 1)))
+    rhs.append(pts[inl_side] @ a - offset[inl_side])
+    qs = list(h.qs)
+    no_side = (np.zeros((0, 3)), np.zeros(0))
+    for j, (door, face, keep) in enumerate(zip(doors, faces.doors, inl_doors, strict=True)):
+        # q from the door's front normal against the body's front (normal turned by s q)
+        if keep.sum() >= MIN_DOOR_POINTS:
+            n_door, keep, _ = _robust_normal(face, keep, no_side, np.zeros(0, dtype=bool))
+            options = [door.sign * _wrap(_angle(s * n_door) - (yaw + math.pi)) for s in (1.0, -1.0)]
+            qs[j] = float(np.clip(min(options, key=lambda v: abs(v - h.qs[j])), 0.0, Q_MAX))
+        # base position: each inlier on its face's plane
+        a = (rot @ rot_z(door.sign * qs[j]))[:, 0]  # the door's x: a . (p - t - R o_joint)
+        pts, offset = face
+        rows.append(np.tile(a, (int(keep.sum()), 1)))
+        rhs.append(pts[keep] @ a - a @ (rot @ door.origin) - offset[keep])
+    # plus a pull towards the hypothesis
     prior = math.sqrt(PRIOR_WEIGHT)
     rows.append(prior * np.eye(3)[:2])
     rhs.append(prior * np.array([h.x, h.y]))
     # every face normal is horizontal: the position across them is (x, y) alone
     t = np.linalg.lstsq(np.concatenate(rows)[:, :2], np.concatenate(rhs), rcond=None)[0]
-    return h.with_pose(float(t[0]), float(t[1]), _base_height(h, faces), yaw, q)
+    return h.with_pose(float(t[0]), float(t[1]), _base_height(h, faces), yaw, tuple(qs))
 
 
 def search_opening(
@@ -620,18 +671,20 @@ def search_opening(
     part the image does not show: the same render), the smallest move."""
     c, s = math.cos(h.yaw), math.sin(h.yaw)  # the object's x in the camera frame
 
-    def opening(d: float) -> Hypothesis:
-        return h.with_pose(h.x + d * c, h.y + d * s, h.z, h.yaw, h.q + d)
+    (q,) = h.qs
 
-    h = _line_search(opening, -h.q, q_max(h.joint_type, h.depth) - h.q, renderer, observed)
+    def opening(d: float) -> Hypothesis:
+        return h.with_pose(h.x + d * c, h.y + d * s, h.z, h.yaw, (q + d,))
+
+    h = _line_search(opening, -q, q_max(h.joint_type, h.depth) - q, renderer, observed)
 
     def across(d: float) -> Hypothesis:
-        return h.with_pose(h.x - d * s, h.y + d * c, h.z, h.yaw, h.q)
+        return h.with_pose(h.x - d * s, h.y + d * c, h.z, h.yaw, h.qs)
 
     h = _line_search(across, -SEARCH_SPAN, SEARCH_SPAN, renderer, observed)
 
     def up(d: float) -> Hypothesis:
-        return h.with_pose(h.x, h.y, h.z + d, h.yaw, h.q)
+        return h.with_pose(h.x, h.y, h.z + d, h.yaw, h.qs)
 
     return _line_search(up, -SEARCH_SPAN, SEARCH_SPAN, renderer, observed)
 
@@ -664,7 +717,12 @@ def _base_height(h: Hypothesis, faces: _Faces) -> float:
 
 
 def _fit_drawer(
-    h: Hypothesis, faces: _Faces, inl: dict[str, NDArray[np.bool_]], joint_origin: Array
+    h: Hypothesis,
+    faces: _Faces,
+    inl_front: NDArray[np.bool_],
+    inl_side: NDArray[np.bool_],
+    inl_drawer: NDArray[np.bool_],
+    joint_origin: Array,
 ) -> Hypothesis:
     """One least-squares step for a drawer. Its front is parallel to the body's, so the
     yaw comes from the body's front rim, the drawer's front (each on its own parallel
@@ -673,33 +731,33 @@ def _fit_drawer(
     x = -depth/2 - q (object frame), with a pull towards the hypothesis (q's only keeps
     the system's rank: a drawer front with no rim in view moves the base, not q)."""
     pts_f, off_f = faces.front
-    pts_d, off_d = faces.door
+    (pts_d, off_d), (q,) = faces.doors[0], h.qs
     n_front = len(pts_f)
     # the drawer front's plane in the object frame: its own frame's x plus the joint's
-    ahead = float(joint_origin[0]) - h.q
+    ahead = float(joint_origin[0]) - q
     fronts = (np.concatenate([pts_f, pts_d]), np.concatenate([off_f, off_d + ahead]))
-    yaw, kept, inl["side"] = _fit_yaw(h, fronts, np.concatenate([inl["front"], inl["door"]]),
-                                      faces.side, inl["side"])  # fmt: skip
-    inl["front"], inl["door"] = kept[:n_front], kept[n_front:]
+    yaw, kept, inl_side = _fit_yaw(h, fronts, np.concatenate([inl_front, inl_drawer]),
+                                   faces.side, inl_side)  # fmt: skip
+    inl_front, inl_drawer = kept[:n_front], kept[n_front:]
     rot = rot_z(yaw)
     a, b = rot[:, 0], rot[:, 1]  # object x and y in the camera frame
     rows: list[Array] = []
     rhs: list[Array] = []
     for (pts, offset), keep, axis, q_coef in (
-        (faces.front, inl["front"], a, 0.0),
-        (faces.side, inl["side"], b, 0.0),
+        (faces.front, inl_front, a, 0.0),
+        (faces.side, inl_side, b, 0.0),
         # the drawer's x: a . (p - t - R o_joint) + q (it moves along -x)
-        (faces.door, inl["door"], a, -1.0),
+        (faces.doors[0], inl_drawer, a, -1.0),
     ):
         rows.append(np.tile([axis[0], axis[1], q_coef], (int(keep.sum()), 1)))
         rhs.append(pts[keep] @ axis - offset[keep])
     rhs[-1] = rhs[-1] - a @ (rot @ joint_origin)
     prior = np.diag([math.sqrt(PRIOR_WEIGHT)] * 2 + [math.sqrt(Q_PRIOR_WEIGHT)])
     rows.append(prior)
-    rhs.append(prior @ np.array([h.x, h.y, h.q]))
+    rhs.append(prior @ np.array([h.x, h.y, q]))
     t = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)[0]
     q = float(np.clip(t[2], 0.0, q_max(h.joint_type, h.depth)))
-    return h.with_pose(float(t[0]), float(t[1]), _base_height(h, faces), yaw, q)
+    return h.with_pose(float(t[0]), float(t[1]), _base_height(h, faces), yaw, (q,))
 
 
 def refine_hypothesis(
@@ -715,18 +773,19 @@ def refine_hypothesis(
     along its opening (`search_opening`): the rim is a 2 cm strip, and from a start a few
     centimetres off its pixels see into the drawer, not the rim."""
     h = start
-    image, door_pose = renderer.render(h)
+    image, door_poses = renderer.render(h)
     best = (h, depth_residual(image.depth, observed))
     # Open3D's RANSAC on one OpenMP thread: the same inliers on any machine, and on a
     # busy 2-core host ~0.1 ms a fit instead of ~6 ms of thread start-up
     with _threadpools().limit(limits=1, user_api="openmp"):
         for k in range(ITERATIONS):
             tolerance = TOLERANCES[min(k, len(TOLERANCES) - 1)]
-            faces = _faces(h, image, door_pose, observed, rays, tolerance, renderer.door_thickness)
-            h = _fit(h, faces, renderer.joint_origin, seed, rim=k > 0)
+            faces = _faces(h, image, door_poses, renderer.doors, observed, rays, tolerance,
+                           renderer.door_thickness)  # fmt: skip
+            h = _fit(h, faces, renderer.doors, seed, rim=k > 0)
             if k == 0 and h.joint_type == "prismatic":
                 h = search_opening(h, renderer, observed)
-            image, door_pose = renderer.render(h)
+            image, door_poses = renderer.render(h)
             residual = depth_residual(image.depth, observed)
             if residual < best[1]:
                 best = (h, residual)
@@ -748,11 +807,12 @@ def _threadpools() -> Any:
 def interval_ok(
     label: Array, columns: list[str], lower: Array, upper: Array, joint_type: str = "revolute"
 ) -> bool:
-    """True when the label's yaw and q lie inside [lower, upper] (label units) widened by
-    `INTERVAL_MARGIN` (a drawer's q by `INTERVAL_MARGIN_M`): the quantities the planes
-    read."""
+    """True when the label's yaw and each q lie inside [lower, upper] (label units)
+    widened by `INTERVAL_MARGIN` (a drawer's q by `INTERVAL_MARGIN_M`): the quantities the
+    planes read."""
     q_margin = INTERVAL_MARGIN_M if joint_type == "prismatic" else INTERVAL_MARGIN
-    for name, margin in (("pose_yaw", INTERVAL_MARGIN), ("j0_q", q_margin)):
+    qs = [(f"j{j}_q", q_margin) for j in range(joint_count(columns))]
+    for name, margin in [("pose_yaw", INTERVAL_MARGIN), *qs]:
         i = columns.index(name)
         if not lower[i] - margin <= label[i] <= upper[i] + margin:
             return False
@@ -822,7 +882,7 @@ def refine(
                                                                  columns))  # fmt: skip
     image, view = detail if detail is not None else (observed, camera)
     handle = None
-    if network.joint_type == "revolute":
+    if category in SIDED:
         handle = handle_side(inside, columns, category, parts, image, view)
     if handle is not None and handle != best.chirality:
         best = min((c for c in inside if c.chirality == handle), key=lambda c: c.residual)
@@ -850,8 +910,8 @@ def _candidates(
 ) -> tuple[float, list[Candidate]]:
     """The network's residual and every refined candidate (module docstring)."""
     rays = camera.ray_directions()
-    # a door from both hinge sides; a drawer has one
-    sides = (1, -1) if network.joint_type == "revolute" else (network.chirality,)
+    # a door from both hinge sides; a drawer and the two-door cabinet have one
+    sides = (1, -1) if category in SIDED else (network.chirality,)
     renderers = {c: PosedRenderer(_side(network, c), category, parts, camera) for c in sides}
     try:
         image, _ = renderers[network.chirality].render(network)
@@ -864,7 +924,7 @@ def _candidates(
             component = Hypothesis.from_label(means[k], columns, network.joint_type)
             # the estimate's geometry for every start: one object per hinge side
             base = network.with_pose(component.x, component.y, component.z, component.yaw,
-                                     component.q)  # fmt: skip
+                                     component.qs)  # fmt: skip
             side = component.chirality
             starts = [_side(base, c) for c in sorted(sides, key=lambda c: c != side)]
             if rank == 0 and len(sides) == 2:  # and the top component's mirror image
@@ -935,10 +995,10 @@ def handle_position(
     from artic.objects.categories import build
 
     obj = build(h.spec(category, parts))
-    joint = obj.movable_joints[0]
+    joint = obj.movable_joints[0]  # the first door (a refrigerator's lower one)
     door = next(link for link in obj.links if link.name == joint.child)
     lo, hi = door.mesh.vertices.min(axis=0), door.mesh.vertices.max(axis=0)
-    pose = h.door_pose(joint)
+    pose = h.door_poses(obj.movable_joints)[0]
     image = np.where(np.isfinite(depth), depth, 0)
     rows, cols = np.nonzero(image > 0)
     local = (camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3]  # door frame: hinge y = 0
@@ -995,7 +1055,7 @@ def handle_side(
             continue
         best = min(same, key=lambda c: c.residual)
         h = Hypothesis.from_label(best.label, columns)
-        if h.q >= HANDLE_Q_MAX or best.residual > HANDLE_RESIDUAL * floor:
+        if max(h.qs) >= HANDLE_Q_MAX or best.residual > HANDLE_RESIDUAL * floor:
             continue
         at = handle_position(h, category, parts, depth, camera)
         if at is not None and at >= HANDLE_FREE:
