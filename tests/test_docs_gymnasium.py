@@ -34,6 +34,7 @@ def test_the_stable_baselines3_example_trains_saves_and_films(tmp_path, monkeypa
     code = shrink(code, 'device="cpu")', 'device="cpu", n_steps=64, batch_size=32, n_epochs=1)')
     code = shrink(code, "n_eval_episodes=10", "n_eval_episodes=1")
     monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "sb3"))  # not the system's tmp folder
     exec(compile(code, str(DOC), "exec"), {"__name__": "docs_gymnasium"})
     printed = capsys.readouterr().out
     assert re.search(r"mean return -\d+ before, -\d+ after training", printed), printed

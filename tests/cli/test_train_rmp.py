@@ -38,6 +38,20 @@ def test_writes_curve_forces_policies_and_summary(reference):
     assert (reference / "manifest.json").is_file()
 
 
+def test_training_leaves_nothing_in_the_temporary_folder(tmp_path, monkeypatch):
+    """SB3's default logger makes an SB3-<time> folder in the system's temporary folder at
+    every learn() call; artic sets its own (it writes its own rows)."""
+    import tempfile
+
+    scratch = tmp_path / "system_tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    code, _, err = train(tmp_path / "out", "--task", "push", "epochs=2")
+    assert code == 0, err
+    assert not list(scratch.glob("SB3-*"))
+
+
 def test_same_config_same_bytes(reference, tmp_path):
     code, _, err = train(tmp_path / "again", "--task", "push", "epochs=3")
     assert code == 0, err

@@ -110,8 +110,9 @@ def ppo_model(cfg: PPOConfig, env: Any, seed: int) -> PPO:
     """SB3's PPO set as SpinningUp's (module docstring), on `env` (one environment)."""
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
 
-    return PPO(
+    model = PPO(
         "MlpPolicy",
         env,
         learning_rate=cfg.lr,
@@ -136,6 +137,10 @@ def ppo_model(cfg: PPOConfig, env: Any, seed: int) -> PPO:
         device="cpu",
         verbose=0,
     )
+    # artic writes its own per-epoch rows; SB3's default logger would make an empty
+    # SB3-<time> folder in the system's temporary folder at every learn() call
+    model.set_logger(Logger(None, []))
+    return model
 
 
 class EpochStats:
