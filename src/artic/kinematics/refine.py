@@ -169,9 +169,15 @@ HANDLE_Q_MAX = math.radians(10.0)
 #: nor when its residual is more than this many times the best candidate's: a door open
 #: far, seen by a candidate that has it closed, has its edge standing proud like a handle
 HANDLE_RESIDUAL = 1.6
-#: the door's plane is where the hypothesis puts it when this share of its outline's
-#: points lie within the threshold of it; else the test abstains
+#: the door's plane is where the hypothesis puts it when this share of the points of its
+#: outline's core (inset by `HANDLE_BEYOND` across the door: at its edges an oblique view
+#: sees the body's side, or through a gap the body's inside, behind the door's plane in
+#: its own coordinates) lie within the threshold of it; else the test abstains
 HANDLE_PLANE_SHARE = 0.5
+#: the binary opening of the proud pixels (rows, columns): isolated noise and one-row
+#: slivers along horizontal edges go, a vertical bar one pixel wide stays (a handle 1.5
+#: cm thick 2 m away in the 192x108 camera)
+HANDLE_OPENING = (2, 1)
 #: a handle this far across the door from the hinge (as a share of its width) or further
 #: is at the free edge
 HANDLE_FREE = 0.65
@@ -986,8 +992,8 @@ def handle_position(
     the door from the hinge (0) to the free edge (1; beyond: below 0 or above 1), or None
     when no handle stands out (module docstring, `HANDLE_*`): the pixels inside the door's
     (widened) outline standing proud of its front plane (as the image has it: their
-    median) by more than the threshold, after a 2 x 2 binary opening (isolated noise and
-    one-pixel edge slivers go), grouped into connected blobs; the largest blob at most
+    median) by more than the threshold, after a binary opening (`HANDLE_OPENING`:
+    isolated noise and one-row slivers go), grouped into connected blobs; the largest blob at most
     `HANDLE_EXTENT` across the door with at least `HANDLE_PIXELS` pixels is the handle.
     `depth` (H, W) metres in `camera`."""
     from scipy import ndimage
@@ -1004,20 +1010,21 @@ def handle_position(
     local = (camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3]  # door frame: hinge y = 0
     # across the door, its outline widened by HANDLE_BEYOND (a door wider than the
     # hypothesis' has its handle beyond it); up it, inset by HANDLE_EDGE
-    inside = (local[:, 1] > lo[1] - HANDLE_BEYOND) & (local[:, 1] < hi[1] + HANDLE_BEYOND)
-    inside &= (local[:, 2] > lo[2] + HANDLE_EDGE) & (local[:, 2] < hi[2] - HANDLE_EDGE)
+    up = (local[:, 2] > lo[2] + HANDLE_EDGE) & (local[:, 2] < hi[2] - HANDLE_EDGE)
+    inside = up & (local[:, 1] > lo[1] - HANDLE_BEYOND) & (local[:, 1] < hi[1] + HANDLE_BEYOND)
+    core = up & (local[:, 1] > lo[1] + HANDLE_BEYOND) & (local[:, 1] < hi[1] - HANDLE_BEYOND)
     near = inside & (np.abs(local[:, 0] - lo[0]) < HANDLE_PROUD[1])
-    if near.sum() < MIN_FACE_POINTS:
+    if near.sum() < MIN_FACE_POINTS or core.sum() < MIN_FACE_POINTS:
         return None
     offset = local[:, 0] - float(np.median(local[near, 0]))  # towards the camera is -x
     noise = 1.4826 * float(np.median(np.abs(offset[near])))
     threshold = max(HANDLE_PROUD[0], HANDLE_NOISE * noise)
-    if float(np.mean(np.abs(offset[inside]) < threshold)) < HANDLE_PLANE_SHARE:
+    if float(np.mean(np.abs(offset[core]) < threshold)) < HANDLE_PLANE_SHARE:
         return None
     proud = inside & (offset < -threshold) & (offset > -HANDLE_PROUD[1])
     mask = np.zeros(image.shape, dtype=bool)
     mask[rows[proud], cols[proud]] = True
-    mask = ndimage.binary_opening(mask, structure=np.ones((2, 2), dtype=bool))
+    mask = ndimage.binary_opening(mask, structure=np.ones(HANDLE_OPENING, dtype=bool))
     blobs, count = ndimage.label(mask)
     if count == 0:
         return None
