@@ -32,9 +32,9 @@ pose x, y, z, yaw, the body's depth, width, height, the chirality and each door'
 
 It runs from the mixture's top components (up to `COMPONENTS`) and, for a category with a
 hinge side to decide (`SIDED`), both hinge sides (each component's chirality and the
-other, all else equal; for the top component also
-its mirror image about the line of sight, `Hypothesis.reflected`: a network trained on
-one side may read an object hinged on the other side as that), scores every candidate by
+other, all else equal; for the top component also its mirror image about the line of
+sight, `Hypothesis.reflected`: a network trained on one side may read an object hinged on
+the other side as that), scores every candidate by
 a robust depth residual (`depth_residual`: the mean over the union of the rendered and
 observed pixels of |rendered - observed| capped at `RESIDUAL_CAP`, a pixel seen in one
 image only counting the cap) and keeps the lowest, on the network's hinge side unless the
@@ -48,12 +48,12 @@ network's own: the returned estimate's residual is never larger than the network
 On a nearly closed door (every door, for a refrigerator) the handle then has the last word
 on the hinge side (`handle_side`; the first door's handle, a refrigerator's lower one): a
 door is pulled open at its free edge, so its handle (a knob or bar standing proud of the
-door's front) lies near the edge away from the hinge. For the best
-candidate of each side whose door is open less than `HANDLE_Q_MAX` (and whose residual is
-near the best), the pixels of the image in its own camera (`detail`: `artic predict`
-passes the image before it was reduced into the model's camera, where a knob is a pixel or
-two) that lie inside the candidate's door outline and stand proud of its front plane are
-opened (isolated noise goes) and grouped into blobs; the largest compact one is the handle
+door's front) lies near the edge away from the hinge. For the best candidate of each side
+whose door is open less than `HANDLE_Q_MAX` (and whose residual is near the best), the
+pixels of the image in its own camera (`detail`: `artic predict` passes the image before
+it was reduced into the model's camera, where a knob is a pixel or two) that lie inside
+the candidate's door outline and stand proud of its front plane are opened (isolated
+noise goes) and grouped into blobs; the largest compact one is the handle
 (`handle_position`). A candidate with the handle in its door's free part votes for its
 side, one with it by the hinge for the other side; a side every vote is for is chosen,
 with its lowest-residual candidate. A door with no handle, or one too far away for its
