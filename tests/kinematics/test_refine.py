@@ -42,6 +42,7 @@ from cli_runner import run_cli
 
 CAMERA = CameraIntrinsics(fx=105.404, fy=105.404, cx=95.5, cy=53.5, width=192, height=108)
 COLUMNS = label_columns(1)
+COLUMNS_2 = label_columns(2)
 PARTS = PartsConfig()
 
 
@@ -56,10 +57,10 @@ def _image(h: Hypothesis, category: str) -> np.ndarray:
         return backend.render(build(h.spec(category, PARTS)), np.array(h.qs)).depth
 
 
-def _label(h: Hypothesis, category: str) -> np.ndarray:
+def _label(h: Hypothesis, category: str, columns: list[str] = COLUMNS) -> np.ndarray:
     renderer = PosedRenderer(h, category, PARTS, CAMERA)
     try:
-        return renderer.label(h, category, COLUMNS)
+        return renderer.label(h, category, columns)
     finally:
         renderer.close()
 
@@ -130,9 +131,6 @@ def test_plane_fit_recovers_the_door_angle_and_the_hinge(category, chirality, q)
     assert residual < 0.005
 
 
-COLUMNS_2 = label_columns(2)
-
-
 def _two_doors(
     category: str, chirality: int, qs: tuple[float, float], y: float = 0.1
 ) -> Hypothesis:
@@ -187,24 +185,14 @@ def test_refine_a_two_door_object_from_the_networks_mixture(category):
     observed = _image(truth, category)
     wrong = truth.mirrored() if category == "refrigerator" else truth
     guess = wrong.with_pose(truth.x + 0.03, truth.y, truth.z, truth.yaw + 0.04, (0.4, 0.7))
-    renderer = PosedRenderer(guess, category, PARTS, CAMERA)
-    try:
-        estimate = renderer.label(guess, category, COLUMNS_2)
-        true_label = renderer.label(truth, category, COLUMNS_2) if wrong is truth else None
-    finally:
-        renderer.close()
+    estimate = _label(guess, category, COLUMNS_2)
     result = refine(observed, CAMERA, category, COLUMNS_2, estimate, np.array([1.0]),
                     estimate[None], *_wide(estimate))  # fmt: skip
     assert result.refined, result.status
     assert result.residual_refined < result.residual_network
     sides = {c.chirality for c in result.candidates}
     assert sides == ({1, -1} if category == "refrigerator" else {guess.chirality})
-    if true_label is None:
-        renderer = PosedRenderer(truth, category, PARTS, CAMERA)
-        try:
-            true_label = renderer.label(truth, category, COLUMNS_2)
-        finally:
-            renderer.close()
+    true_label = _label(truth, category, COLUMNS_2)
     assert result.label[COLUMNS_2.index("chirality")] == true_label[COLUMNS_2.index("chirality")]
     for j in range(2):
         axis = [COLUMNS_2.index(f"j{j}_origin_{a}") for a in "xyz"]
