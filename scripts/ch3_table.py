@@ -8,11 +8,11 @@ Each argument is an evaluate-mdn output folder. Its rows, in the issue's columns
 `thesis_grid`: the `render.sampling` of the depth folder the report evaluated, read from
 that folder's manifest), the estimator (Mean -> mean, NN -> nn, ICP -> icp, Ours ->
 network, Ours + refinement -> refined; "Ours (densest)" is not a column of Table 3.1),
-the mean errors (configuration in deg, the drawer's in cm) and, for the network, the
-coverage of its 90% intervals over all predicted columns (the refined estimate keeps the
-network's intervals: no coverage of its own). Rows already in `--out` for other
-(category, data) pairs are kept; a report replaces the rows of its own pair. Rows are
-sorted by category, data and estimator.
+the mean errors (configuration in deg, the drawer's in cm) and, for the network and the
+refined estimate, the coverage of their 90% intervals over all predicted columns
+(`calibration.csv`, `calibration_refined.csv`; none for a report without the latter).
+Rows already in `--out` for other (category, data) pairs are kept; a report replaces the
+rows of its own pair. Rows are sorted by category, data and estimator.
 """
 
 from __future__ import annotations
@@ -41,10 +41,8 @@ def report_rows(folder: Path) -> list[dict[str, str]]:
     category = str(manifest.config["category"]["name"])
     depth = read_manifest(input_folder(folder, manifest, "depth"), expected_stage="render-depth")
     data = str(depth.config["render"].get("sampling", "continuous"))
-    with (folder / "calibration.csv").open(newline="") as f:
-        coverage = {
-            float(r["nominal"]): float(r["all predicted columns"]) for r in csv.DictReader(f)
-        }
+    coverage = {"network": _coverage(folder / "calibration.csv"),
+                "refined": _coverage(folder / "calibration_refined.csv")}  # fmt: skip
     rows = []
     with (folder / "summary.csv").open(newline="") as f:
         for r in csv.DictReader(f):
@@ -58,9 +56,21 @@ def report_rows(folder: Path) -> list[dict[str, str]]:
                 "rotation_thesis_deg": _round(r["rotation_thesis_deg_mean"]),
                 "yaw_deg": _round(r["rotation_deg_mean"]),
                 "hinge_side_wrong_pct": _round(r["hinge_side_wrong_pct_mean"]),
-                "coverage_90_pct": f"{100 * coverage[0.9]:.1f}" if estimator == "network" else "",
+                "coverage_90_pct": (
+                    f"{100 * coverage[estimator][0.9]:.1f}" if 0.9 in coverage.get(estimator, {})
+                    else ""
+                ),
             })  # fmt: skip
     return rows
+
+
+def _coverage(path: Path) -> dict[float, float]:
+    """nominal level -> coverage over all predicted columns, of a calibration csv (none
+    when the file is absent: a report from before the refined intervals)."""
+    if not path.exists():
+        return {}
+    with path.open(newline="") as f:
+        return {float(r["nominal"]): float(r["all predicted columns"]) for r in csv.DictReader(f)}
 
 
 def _round(value: str) -> str:

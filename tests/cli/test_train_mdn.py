@@ -251,6 +251,10 @@ def test_evaluate_mdn_writes_table_3_1_and_calibration(tiny_model, tiny_depth, t
         assert row["status"].startswith(("refined", "fallback", "not refined"))
         if row["residual_network_m"] != "nan":
             assert float(row["residual_refined_m"]) <= float(row["residual_network_m"])
+    # the refined estimate's intervals are fitted on validation images: the tiny data
+    # has none (tests/kinematics/test_refined_intervals.py fits them)
+    assert "No validation images to fit its intervals on" in report
+    assert not (out / "refined_intervals.csv").exists()
 
 
 def test_evaluate_mdn_reads_the_objects_as_a_hashed_input(

@@ -2,7 +2,9 @@
 
 Writes `report.md` (Table 3.1's rows: Mean, NN, ICP, Ours, Ours (densest), Ours +
 refinement: kinematics/evaluate.py; the MDN's calibration), `summary.csv`, `errors.csv`
-(per image and method), `refinement.csv`, `calibration.csv`, and plots: `errors.png`,
+(per image and method), `refinement.csv`, `calibration.csv`, with the refinement also
+`calibration_refined.csv` and `refined_intervals.csv` (the refined estimate's intervals:
+kinematics/evaluate.py `refined_scales`), and plots: `errors.png`,
 `calibration.png`, `examples.png` (true axes green, predicted red).
 """
 
@@ -73,6 +75,7 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
     result = evaluate(
         predictor, train, test, icp, cfg.evaluate.icp_images, cfg.evaluate.batch_size,
         cfg.evaluate.levels, cfg.evaluate.refine_images if cfg.evaluate.refine else 0,
+        load_split(ds, "val"),
     )  # fmt: skip
     _write(tmp, cfg, predictor, test, result)
     return 1
@@ -110,7 +113,13 @@ def _write(
         cfg.category.name, rows, result.coverage, groups, cfg.evaluate.levels, unit, len(test)
     )
     write_csv(tmp / "refinement.csv", *result.refinement_table(test.object_id))
-    (tmp / "report.md").write_text(report + result.refinement_note())
+    if result.refined_coverage:
+        refined = table.calibration_rows(result.refined_coverage, groups)
+        write_csv(tmp / "calibration_refined.csv", ["nominal", *groups], refined)
+        write_csv(tmp / "refined_intervals.csv", ["nominal", *columns], [
+            [lv, *k.tolist()] for lv, k in sorted(result.refined_scales.items())
+        ])  # fmt: skip
+    (tmp / "report.md").write_text(report + result.refinement_note(cfg.evaluate.levels))
 
 
 def _finalize(

@@ -1,11 +1,12 @@
 """Section 3.3.1 evaluation: Ours (most-likely estimate), Ours with the `densest`
 estimator, Ours with the test-time geometric refinement (issue 19, kinematics/refine.py),
 and the three baselines on the test images, per-image errors, and the calibration of the
-MDN's intervals."""
+MDN's intervals and of the refined estimate's (`refined_scales`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -22,6 +23,10 @@ from artic.kinematics.refine import SUPPORTED as REFINED_CATEGORIES
 #: the method name of the refined estimate in every table
 REFINED = "Ours + refinement"
 
+#: the network's half-widths are taken as at least this (label units) in the refined
+#: estimate's intervals (a column the network is sure of to the last digit)
+MIN_HALF_WIDTH = 1e-12
+
 #: nominal levels of the calibration curve
 CURVE_LEVELS = tuple(round(0.05 * k, 2) for k in range(1, 20))
 
@@ -33,6 +38,10 @@ class Evaluation:
     coverage: dict[float, NDArray[np.float64]]  # level -> (L,) fraction inside (NaN: constant)
     #: per refined image (the first rows): status, network's and returned residual (m)
     refinement: list[tuple[str, float, float]]
+    #: the refined estimate's intervals (`refined_scales`): level -> (L,) scale k of the
+    #: network's half-width, and level -> (L,) fraction of the refined test images inside
+    refined_scales: dict[float, NDArray[np.float64]] = field(default_factory=dict)
+    refined_coverage: dict[float, NDArray[np.float64]] = field(default_factory=dict)
 
     def refinement_table(
         self, object_id: NDArray[np.integer]
@@ -47,17 +56,32 @@ class Evaluation:
         ]
         return header, rows
 
-    def refinement_note(self) -> str:
-        """The report's line on the refinement: on how many images, the fallback rate."""
+    def refinement_note(self, levels: tuple[float, ...] = ()) -> str:
+        """The report's lines on the refinement: on how many images, the fallback rate,
+        and the coverage of its intervals at `levels` (over all predicted columns)."""
         if not self.refinement:
             return ""
         n = len(self.refinement)
         fallback = sum(not status.startswith("refined") for status, _, _ in self.refinement)
-        return (
+        note = (
             f"\n{REFINED}: the test-time geometric refinement (docs/kinematics.md) on the "
             f"first {n} test images; it kept the network's estimate (fallback) on {fallback} "
             f"({100 * fallback / n:.1f}%). Per image: refinement.csv.\n"
         )
+        shown = [lv for lv in levels if lv in self.refined_coverage]
+        if not self.refined_coverage:
+            note += "No validation images to fit its intervals on: none reported.\n"
+        elif shown:
+            cells = ", ".join(
+                f"{100 * lv:.0f}%: {100 * float(np.nanmean(self.refined_coverage[lv])):.1f}%"
+                for lv in shown
+            )
+            note += (
+                f"Its intervals (the estimate +- k x the network's half-width, k per column "
+                f"fitted on as many validation images: refined_intervals.csv) held the "
+                f"truth in {cells} (all predicted columns; calibration_refined.csv).\n"
+            )
+        return note
 
 
 def evaluate(
@@ -69,10 +93,13 @@ def evaluate(
     batch_size: int,
     levels: tuple[float, ...],
     refine_images: int = 0,
+    calibration: DepthSplit | None = None,
 ) -> Evaluation:
     """Every method on `test`; coverage at `levels` and at `CURVE_LEVELS`; the refined
     estimate (`REFINED`) on the first `refine_images` test images of a category the
-    refinement supports."""
+    refinement supports, with its intervals' scales fitted on the first `refine_images`
+    images of `calibration` (withheld from training: the validation split;
+    `refined_scales`) and their coverage on the refined test images."""
     codec = predictor.codec
     all_levels = tuple(sorted(set(levels) | set(CURVE_LEVELS)))
     inside = {lv: np.zeros(len(codec.columns)) for lv in all_levels}
@@ -112,16 +139,21 @@ def evaluate(
         n = min(icp_images, len(test))
         predictions["ICP"] = np.stack([icp.predict(d) for d in test.depth_m(slice(0, n))])
     refinement: list[tuple[str, float, float]] = []
+    scales: dict[float, NDArray[np.float64]] = {}
+    refined_cover: dict[float, NDArray[np.float64]] = {}
     if refine_images > 0 and predictor.category in REFINED_CATEGORIES:
         n = min(refine_images, len(test))
-        refined = []
-        for i, depth_i in enumerate(test.depth_m(slice(0, n))):
-            with torch.no_grad():
-                mix = predictor.mixture(depth_i)
-            r = predictor.refine(mix, depth_i, None, predictions["Ours"][i])
-            refined.append(r.label)
-            refinement.append((r.status, r.residual_network, r.residual_refined))
-        predictions[REFINED] = np.stack(refined)
+        refined, halves = _refined(predictor, test.depth_m(slice(0, n)), all_levels, refinement)
+        predictions[REFINED] = refined
+        if calibration is not None and len(calibration) > 0:
+            held = calibration.head(refine_images)
+            fitted, fitted_halves = _refined(predictor, held.depth_m(slice(0, len(held))),
+                                             all_levels, [])  # fmt: skip
+            for lv in all_levels:
+                k = refined_scales(fitted, held.labels, fitted_halves[lv], lv)
+                scales[lv] = np.where(codec.learned, k, np.nan)
+                c = coverage(*refined_interval(refined, halves[lv], k), test.labels[:n])
+                refined_cover[lv] = np.where(codec.learned, c, np.nan)
     columns = list(codec.columns)
     errors = {
         name: kinematic_errors(
@@ -130,4 +162,60 @@ def evaluate(
         for name, p in predictions.items()
     }
     cover = {lv: np.where(codec.learned, v / len(test), np.nan) for lv, v in inside.items()}
-    return Evaluation(predictions, errors, cover, refinement)
+    return Evaluation(predictions, errors, cover, refinement, scales, refined_cover)
+
+
+def _refined(
+    predictor: Predictor,
+    depth: NDArray[np.float32],
+    levels: tuple[float, ...],
+    record: list[tuple[str, float, float]],
+) -> tuple[NDArray[np.float64], dict[float, NDArray[np.float64]]]:
+    """The refined estimates (N, L) of the images `depth` (N, H, W), one image at a time
+    as `artic predict` refines (from the network's most likely estimate of the image),
+    and, per level, the half-widths (N, L) of the network's central intervals; each
+    refinement's status and residuals appended to `record`."""
+    refined: list[NDArray[np.float64]] = []
+    halves: dict[float, list[NDArray[np.float64]]] = {lv: [] for lv in levels}
+    for depth_i in depth:
+        with torch.no_grad():
+            mix = predictor.mixture(depth_i)
+        label = predictor._estimate(mix, depth_i, None, "most-likely")
+        r = predictor.refine(mix, depth_i, None, label)
+        refined.append(r.label)
+        record.append((r.status, r.residual_network, r.residual_refined))
+        for lv in levels:
+            lo, hi = marginal_interval(mix, lv)
+            halves[lv].append(0.5 * (predictor.codec.decode(hi.numpy())[0]
+                                     - predictor.codec.decode(lo.numpy())[0]))  # fmt: skip
+    return np.stack(refined), {lv: np.stack(h) for lv, h in halves.items()}
+
+
+def refined_scales(
+    refined: NDArray[np.float64],
+    truth: NDArray[np.float64],
+    half: NDArray[np.float64],
+    level: float,
+) -> NDArray[np.float64]:
+    """Per column (L,): the scale k of the refined estimate's central `level` interval,
+    estimate +- k x the half-width of the network's interval at that level, from images
+    withheld from training (N, L each): normalised split conformal prediction. Each
+    image's score is |refined - truth| / half-width; k is the ceil((N + 1) level)-th
+    smallest score (inf when that exceeds N), so that a new image from the same data lies
+    inside with probability at least `level`. The network's width carries how sure it is
+    of this image; k, how far the refinement moves the estimate against that."""
+    scores = np.abs(refined - truth) / np.maximum(half, MIN_HALF_WIDTH)
+    rank = math.ceil((len(scores) + 1) * level)
+    if rank > len(scores):
+        return np.full(scores.shape[1], np.inf)
+    # a hair wider: the image that sets k stays inside after rounding
+    return np.asarray(np.sort(scores, axis=0)[rank - 1] * (1 + 1e-9), dtype=np.float64)
+
+
+def refined_interval(
+    refined: NDArray[np.float64], half: NDArray[np.float64], k: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The refined estimate's interval (lower, upper), each (N, L): the estimate (N, L)
+    +- k (L,) x the network's half-width (N, L) (`refined_scales`)."""
+    reach = np.where(np.isinf(k), np.inf, k * np.maximum(half, MIN_HALF_WIDTH))
+    return refined - reach, refined + reach
