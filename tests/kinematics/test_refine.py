@@ -485,3 +485,47 @@ def test_refinement_reads_a_closed_doors_side_off_the_image_as_taken():
     detailed = refine(coarse, *args, parts=knob, detail=(fine, FINE))
     assert detailed.refined and "handle" in detailed.status, detailed.status
     assert detailed.label[COLUMNS.index("chirality")] == -1
+
+
+def test_predict_prints_the_refined_estimates_intervals(tiny_model, training_image, tmp_path):
+    """`intervals`: the mixture's for the network's estimate (`--no-refine`); for a refined
+    one, the estimate +- k x the mixture's half-width with k from refined_intervals.csv
+    beside the model, or none without that file; a malformed file exits 2 naming it."""
+    from artic.kinematics.intervals import REFINED_INTERVALS, write_refined_intervals
+    from artic.kinematics.predict import INTERVAL_LEVELS
+
+    image, camera = training_image
+    model = tmp_path / "model.pt"
+    shutil.copyfile(tiny_model / "model.pt", model)
+    base = ("predict", str(image), "--category", "microwave", "--camera", str(camera),
+            "--model", str(model))  # fmt: skip
+    code, out, err = run_cli(*base, "--no-refine")
+    assert code == 0, err
+    network = json.loads(out)
+    assert network["intervals"]["of"] == "mixture"
+    assert set(network["intervals"]["levels"]) == {f"{lv:g}" for lv in INTERVAL_LEVELS}
+    code, out, err = run_cli(*base)
+    assert code == 0, err
+    refined = json.loads(out)
+    if not refined["refinement"]["refined"]:
+        pytest.skip(f"the tiny model's estimate was not refined: {refined['refinement']}")
+    assert refined["intervals"]["levels"] == {}
+    assert "no refined_intervals.csv" in refined["intervals"]["of"]
+    columns = network["mixture"]["columns"]
+    k = np.linspace(0.5, 2.0, len(columns))
+    write_refined_intervals(tmp_path / REFINED_INTERVALS, columns,
+                            {lv: k for lv in INTERVAL_LEVELS})  # fmt: skip
+    code, out, err = run_cli(*base)
+    assert code == 0, err
+    scaled = json.loads(out)
+    estimate = np.array([scaled["estimate"][c] for c in columns])
+    for level, box in scaled["intervals"]["levels"].items():
+        lower, upper = np.array(box["lower"]), np.array(box["upper"])
+        mixture = network["intervals"]["levels"][level]
+        half = 0.5 * (np.array(mixture["upper"]) - np.array(mixture["lower"]))
+        np.testing.assert_allclose(0.5 * (lower + upper), estimate, atol=1e-9)
+        np.testing.assert_allclose(0.5 * (upper - lower), k * half, rtol=1e-9, atol=1e-9)
+    (tmp_path / REFINED_INTERVALS).write_text("nominal,pose_x\n0.9,1.0\n")
+    code, _, err = run_cli(*base)
+    assert code == 2 and f"{tmp_path / REFINED_INTERVALS}: its columns" in err
+    assert len(err.strip().splitlines()) == 1

@@ -1,6 +1,6 @@
 """The refined estimate's intervals (issue 19: interval calibration for the refined
 estimate too): normalised split conformal scales of the network's half-widths, fitted on
-withheld images (`kinematics.evaluate.refined_scales`)."""
+withheld images (`kinematics.intervals.refined_scales`)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ import pytest
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.evaluation.kinematics import coverage
 from artic.kinematics.data import load_split
-from artic.kinematics.evaluate import REFINED, evaluate, refined_interval, refined_scales
+from artic.kinematics.evaluate import REFINED, evaluate
+from artic.kinematics.intervals import refined_interval, refined_scales
 from artic.kinematics.predict import Predictor
 
 

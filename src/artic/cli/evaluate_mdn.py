@@ -90,6 +90,7 @@ def _write(
 ) -> None:
     from artic.evaluation import kinematics as table
     from artic.evaluation.plots import calibration_plot, error_histograms, examples_sheet
+    from artic.kinematics.intervals import REFINED_INTERVALS, write_refined_intervals
 
     unit = table.configuration_unit(predictor.joint_type)
     rows = table.summary_rows(result.errors, METHODS)
@@ -116,9 +117,7 @@ def _write(
     if result.refined_coverage:
         refined = table.calibration_rows(result.refined_coverage, groups)
         write_csv(tmp / "calibration_refined.csv", ["nominal", *groups], refined)
-        write_csv(tmp / "refined_intervals.csv", ["nominal", *columns], [
-            [lv, *k.tolist()] for lv, k in sorted(result.refined_scales.items())
-        ])  # fmt: skip
+        write_refined_intervals(tmp / REFINED_INTERVALS, columns, result.refined_scales)
     (tmp / "report.md").write_text(report + result.refinement_note(cfg.evaluate.levels))
 
 

@@ -5,7 +5,6 @@ MDN's intervals and of the refined estimate's (`refined_scales`)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,6 +14,7 @@ from numpy.typing import NDArray
 from artic.evaluation.kinematics import coverage, kinematic_errors
 from artic.kinematics.baselines import IcpBaseline, mean_baseline, nearest_neighbour, nn_features
 from artic.kinematics.data import DepthSplit
+from artic.kinematics.intervals import refined_interval, refined_scales
 from artic.kinematics.mdn import densest, marginal_interval, most_likely
 from artic.kinematics.predict import Predictor
 from artic.kinematics.preprocess import full_image
@@ -22,10 +22,6 @@ from artic.kinematics.refine import SUPPORTED as REFINED_CATEGORIES
 
 #: the method name of the refined estimate in every table
 REFINED = "Ours + refinement"
-
-#: the network's half-widths are taken as at least this (label units) in the refined
-#: estimate's intervals (a column the network is sure of to the last digit)
-MIN_HALF_WIDTH = 1e-12
 
 #: nominal levels of the calibration curve
 CURVE_LEVELS = tuple(round(0.05 * k, 2) for k in range(1, 20))
@@ -189,33 +185,3 @@ def _refined(
             halves[lv].append(0.5 * (predictor.codec.decode(hi.numpy())[0]
                                      - predictor.codec.decode(lo.numpy())[0]))  # fmt: skip
     return np.stack(refined), {lv: np.stack(h) for lv, h in halves.items()}
-
-
-def refined_scales(
-    refined: NDArray[np.float64],
-    truth: NDArray[np.float64],
-    half: NDArray[np.float64],
-    level: float,
-) -> NDArray[np.float64]:
-    """Per column (L,): the scale k of the refined estimate's central `level` interval,
-    estimate +- k x the half-width of the network's interval at that level, from images
-    withheld from training (N, L each): normalised split conformal prediction. Each
-    image's score is |refined - truth| / half-width; k is the ceil((N + 1) level)-th
-    smallest score (inf when that exceeds N), so that a new image from the same data lies
-    inside with probability at least `level`. The network's width carries how sure it is
-    of this image; k, how far the refinement moves the estimate against that."""
-    scores = np.abs(refined - truth) / np.maximum(half, MIN_HALF_WIDTH)
-    rank = math.ceil((len(scores) + 1) * level)
-    if rank > len(scores):
-        return np.full(scores.shape[1], np.inf)
-    # a hair wider: the image that sets k stays inside after rounding
-    return np.asarray(np.sort(scores, axis=0)[rank - 1] * (1 + 1e-9), dtype=np.float64)
-
-
-def refined_interval(
-    refined: NDArray[np.float64], half: NDArray[np.float64], k: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The refined estimate's interval (lower, upper), each (N, L): the estimate (N, L)
-    +- k (L,) x the network's half-width (N, L) (`refined_scales`)."""
-    reach = np.where(np.isinf(k), np.inf, k * np.maximum(half, MIN_HALF_WIDTH))
-    return refined - reach, refined + reach

@@ -19,6 +19,7 @@ split between the two hinge sides (docs/kinematics.md, "Warnings").
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +34,12 @@ from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics import Estimator
 from artic.kinematics.config import MDN_KIND, MdnModelMeta
+from artic.kinematics.intervals import (
+    REFINED_INTERVALS,
+    Scales,
+    read_refined_intervals,
+    refined_interval,
+)
 from artic.kinematics.mdn import (
     KinematicsMDN,
     Mixture,
@@ -130,6 +137,10 @@ def domain_card_lines(domain: dict[str, Any], joint_type: str) -> list[str]:
     return lines
 
 
+#: the levels of `describe`'s `intervals`
+INTERVAL_LEVELS = (0.5, 0.9, 0.95)
+
+
 @dataclass(frozen=True)
 class Predictor:
     category: str
@@ -140,6 +151,9 @@ class Predictor:
     joint_type: str
     #: what the training images covered; None for a model trained before it was recorded
     domain: TrainingDomain | None = None
+    #: the refined estimate's interval scales (kinematics/intervals.py), read from
+    #: `refined_intervals.csv` beside the model file; None without one
+    refined_scales: Scales | None = None
 
     @classmethod
     def load(cls, path: Path, category: str | None = None) -> Predictor:
@@ -147,7 +161,14 @@ class Predictor:
         file when it is of another kind, category or format."""
         from artic.artifacts.model_file import load_model_file
 
-        return cls.from_payload(load_model_file(path, MDN_KIND, category), path)
+        predictor = cls.from_payload(load_model_file(path, MDN_KIND, category), path)
+        scales = Path(path).parent / REFINED_INTERVALS
+        if not scales.is_file():
+            return predictor
+        columns = list(predictor.codec.columns)
+        return dataclasses.replace(
+            predictor, refined_scales=read_refined_intervals(scales, columns)
+        )
 
     @classmethod
     def from_payload(cls, payload: dict[str, Any], path: Path | None = None) -> Predictor:
@@ -337,11 +358,44 @@ class Predictor:
                 "stds": self.codec.decode_scale(mix.sigma[0].numpy()).tolist(),
             },
             "refinement": refinement,
+            "intervals": self.intervals(mix, label, bool(refinement["refined"])),
         }
         if samples > 0:
             draws = sample(mix, samples, torch.Generator().manual_seed(seed))
             out["samples"] = self.codec.decode(draws[0].numpy()).tolist()
         return out
+
+    def intervals(self, mix: Mixture, label: NDArray[np.float64], refined: bool) -> dict[str, Any]:
+        """`describe`'s `intervals`: central intervals of the returned estimate `label` (L,)
+        at `INTERVAL_LEVELS`, lower and upper per column (`mixture.columns` order). The
+        network's estimate: its mixture's marginal intervals. A refined estimate: the
+        estimate +- k x the mixture's half-width, k from `refined_intervals.csv` beside the
+        model (kinematics/intervals.py); none without that file (`of` says so)."""
+        if refined and self.refined_scales is None:
+            return {"of": "refined estimate: no refined_intervals.csv beside the model "
+                          "(artic evaluate mdn writes one)", "levels": {}}  # fmt: skip
+        levels: dict[str, dict[str, list[float]]] = {}
+        for level in INTERVAL_LEVELS:
+            lo, hi = marginal_interval(mix, level)
+            lower, upper = self.codec.decode(lo.numpy())[0], self.codec.decode(hi.numpy())[0]
+            if refined:
+                k = self._scale(level)
+                if k is None:
+                    continue
+                lower, upper = (
+                    b[0] for b in refined_interval(label[None], 0.5 * (upper - lower)[None], k)
+                )
+            levels[f"{level:g}"] = {"lower": lower.tolist(), "upper": upper.tolist()}
+        of = "refined estimate: +- k x the mixture's half-width" if refined else "mixture"
+        return {"of": of, "levels": levels}
+
+    def _scale(self, level: float) -> NDArray[np.float64] | None:
+        """The refined scales at `level` (a column the network does not learn, NaN: 0),
+        None when the file has no such level."""
+        for lv, k in (self.refined_scales or {}).items():
+            if abs(lv - level) < 1e-9:
+                return np.where(np.isnan(k), 0.0, k)
+        return None
 
     def domain_warnings(
         self,
