@@ -4,7 +4,7 @@ Writes `report.md` (Table 3.1's rows: Mean, NN, ICP, Ours, Ours (densest), Ours 
 refinement: kinematics/evaluate.py; the MDN's calibration), `summary.csv`, `errors.csv`
 (per image and method), `refinement.csv`, `calibration.csv`, with the refinement also
 `calibration_refined.csv` and `refined_intervals.csv` (the refined estimate's intervals:
-kinematics/evaluate.py `refined_scales`), and plots: `errors.png`,
+kinematics/intervals.py), and plots: `errors.png`,
 `calibration.png`, `examples.png` (true axes green, predicted red).
 """
 
