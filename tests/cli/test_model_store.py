@@ -150,6 +150,32 @@ def test_ship_then_predict_and_list(workspace, trained, depth_png):
     assert code == 2 and "card.json: field" in err
 
 
+def test_ship_carries_the_refined_intervals_of_the_evaluation(workspace, trained):
+    """An evaluation with the refined estimate's interval scales ships them beside the
+    model, where `artic predict` reads them (`Predictor.load`)."""
+    from artic.kinematics.intervals import REFINED_INTERVALS, write_refined_intervals
+    from artic.kinematics.predict import Predictor
+
+    model, report = trained
+    evaluation = workspace / "evaluation"
+    shutil.copytree(report, evaluation)
+    columns = list(Predictor.load(model / "model.pt").codec.columns)
+    scales = {0.5: np.full(len(columns), 0.7), 0.9: np.full(len(columns), 1.3)}
+    write_refined_intervals(evaluation / REFINED_INTERVALS, columns, scales)
+    folder = ship_model(_as_release(model, workspace / "release"), evaluation,
+                        workspace / "shipped", "abc123")  # fmt: skip
+    assert (folder / REFINED_INTERVALS).read_bytes() == (
+        evaluation / REFINED_INTERVALS
+    ).read_bytes()
+    loaded = Predictor.load(folder / "model.pt", "microwave").refined_scales
+    assert loaded is not None and sorted(loaded) == [0.5, 0.9]
+    np.testing.assert_array_equal(loaded[0.9], scales[0.9])
+    plain = ship_model(_as_release(model, workspace / "release2"), report,
+                       workspace / "shipped2", "abc123")  # fmt: skip
+    assert not (plain / REFINED_INTERVALS).exists()
+    assert Predictor.load(plain / "model.pt").refined_scales is None
+
+
 def test_evaluate_mdn_reads_a_shipped_model(workspace, trained, tiny_depth):
     """`evaluate mdn model=models/mdn/C` (a shipped model's folder, its manifest input the
     model's sha256) or `model=null` (the store's choice) evaluates the shipped model; one

@@ -6,7 +6,8 @@ Two places hold models of a kind (`mdn`, `segmenter`, `hierarchy`) and a categor
   them;
 - **shipped**: `models/<kind>/<category>/` of the package (`artic.config.compose.models_dir`,
   `$ARTIC_MODELS` overrides), written by `ship_model` from such a folder: `model.pt`,
-  `model_card.md` (with the evaluation figures appended) and `card.json` (`ModelCard`).
+  `model_card.md` (with the evaluation figures appended) and `card.json` (`ModelCard`),
+  and an MDN's `refined_intervals.csv` when its evaluation wrote one.
 
 `choose_model` is the one rule every command follows: the file the user gave; else the
 local model, unless it was trained with a debug preset (a smoke model, never used by
@@ -33,6 +34,9 @@ from artic.errors import InputError
 MODEL_FILE = "model.pt"
 CARD_JSON = "card.json"
 CARD_MD = "model_card.md"
+#: an `evaluate mdn` output's scales of the refined estimate's intervals
+#: (kinematics/intervals.py), shipped beside the model it evaluated
+REFINED_INTERVALS = "refined_intervals.csv"
 #: where training stages put a category's model by default, and evaluations their reports
 LOCAL_ROOT = Path("artifacts/models")
 REPORTS_ROOT = Path("artifacts/reports")
@@ -351,7 +355,8 @@ def ship_model(
 ) -> Path:
     """Copy the training output `folder` into the store as `<kind>/<category>/` with its
     `card.json` (figures from the evaluation output `evaluation`, which must have
-    evaluated this very model) and its model card with those figures appended. `commit`:
+    evaluated this very model) and its model card with those figures appended, and the
+    evaluation's `refined_intervals.csv` when it has one. `commit`:
     the commit the model was trained at; `preset`: the config-group options, when the
     manifest predates recording them. Replaces an earlier shipped model of the same kind
     and category. Returns the new folder."""
@@ -396,6 +401,9 @@ def ship_model(
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     shutil.copyfile(model, tmp / MODEL_FILE)
+    if evaluation is not None and (evaluation / REFINED_INTERVALS).is_file():
+        # the refined estimate's interval scales, which `artic predict` reads beside the model
+        shutil.copyfile(evaluation / REFINED_INTERVALS, tmp / REFINED_INTERVALS)
     card_md = (folder / CARD_MD).read_text() if (folder / CARD_MD).is_file() else ""
     (tmp / CARD_MD).write_text(card_md.rstrip("\n") + "\n\n" + _shipped_section(card))
     write_json(tmp / CARD_JSON, card.model_dump(mode="json"))

@@ -21,10 +21,18 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from artic.artifacts.model_store import REFINED_INTERVALS
 from artic.errors import InputError
 
-#: the file of the scales, in an `evaluate mdn` report and beside a model
-REFINED_INTERVALS = "refined_intervals.csv"
+__all__ = [
+    "MIN_HALF_WIDTH",
+    "REFINED_INTERVALS",
+    "Scales",
+    "read_refined_intervals",
+    "refined_interval",
+    "refined_scales",
+    "write_refined_intervals",
+]
 
 #: the network's half-widths are taken as at least this (label units) in the refined
 #: estimate's intervals (a column the network is sure of to the last digit)
