@@ -8,6 +8,12 @@ the commit it was trained at, the evaluation's figures) and model_card.md with t
 figures appended (`artic.artifacts.model_store.ship_model`). The commit is read with git
 from the checkout the model folder lies in; a model trained with a debug preset is
 refused. docs/models.md says how the shipped models were made.
+
+    python scripts/ship_model.py models/mdn/drawer --evaluation REPORT
+
+re-cards a model already shipped (its folder has a card.json): the figures of a new
+`artic evaluate mdn model=models/mdn/drawer` and its refined_intervals.csv
+(`artic.artifacts.model_store.recard_shipped`); the model file stays.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ import argparse
 import subprocess
 from pathlib import Path
 
-from artic.artifacts.model_store import ship_model
+from artic.artifacts.model_store import CARD_JSON, MANIFEST, recard_shipped, ship_model
 from artic.errors import InputError
 
 STORE = Path(__file__).resolve().parents[1] / "models"
@@ -43,8 +49,12 @@ def main() -> None:
     parser.add_argument("--store", type=Path, default=STORE)
     args = parser.parse_args()
     commit = args.commit or _commit(args.folder)
+    shipped = (args.folder / CARD_JSON).is_file() and not (args.folder / MANIFEST).is_file()
     try:
-        target = ship_model(args.folder, args.evaluation, args.store, commit, args.preset)
+        if shipped and args.evaluation is not None:
+            target = recard_shipped(args.folder, args.evaluation)
+        else:
+            target = ship_model(args.folder, args.evaluation, args.store, commit, args.preset)
     except InputError as err:
         raise SystemExit(f"error: {err}") from None
     print(f"shipped: {target}")  # noqa: T201

@@ -18,6 +18,7 @@ from artic.artifacts.model_store import (
     choose_model,
     list_models,
     read_card,
+    recard_shipped,
     ship_model,
 )
 from artic.errors import InputError
@@ -174,6 +175,38 @@ def test_ship_carries_the_refined_intervals_of_the_evaluation(workspace, trained
                        workspace / "shipped2", "abc123")  # fmt: skip
     assert not (plain / REFINED_INTERVALS).exists()
     assert Predictor.load(plain / "model.pt").refined_scales is None
+
+
+def test_a_shipped_model_is_recarded_with_a_new_evaluation(workspace, trained, tiny_depth):
+    """`recard_shipped`: the figures and hash of a new `evaluate mdn` of the shipped
+    folder, its refined_intervals.csv beside the model; the model file stays, and an
+    evaluation of another model is refused."""
+    from artic.kinematics.intervals import REFINED_INTERVALS, write_refined_intervals
+    from artic.kinematics.predict import Predictor
+
+    model, report = trained
+    folder = ship_model(_as_release(model, workspace / "release"), report,
+                        workspace / "shipped", "abc123")  # fmt: skip
+    before = read_card(folder)
+    out = workspace / "evaluation"
+    code, _, err = run_cli(
+        "evaluate", "mdn", "debug=tiny", "category=microwave", f"model={folder}",
+        f"depth={tiny_depth}", f"out={out}", "evaluate.icp_images=1",
+    )  # fmt: skip
+    assert code == 0, err
+    columns = list(Predictor.load(folder / "model.pt").codec.columns)
+    write_refined_intervals(out / REFINED_INTERVALS, columns, {0.9: np.full(len(columns), 1.5)})
+    with pytest.raises(InputError, match="did not evaluate the model"):
+        recard_shipped(folder, report)  # the training output's evaluation, not the shipped file's
+    assert recard_shipped(folder, out) == folder
+    after = read_card(folder)
+    assert after.evaluation_hash == json.loads((out / MANIFEST).read_text())["content_hash"]
+    assert after.model_sha256 == before.model_sha256 and after.commit == before.commit
+    card_md = (folder / "model_card.md").read_text()
+    assert card_md.count("## Shipped with artic") == 1
+    scales = Predictor.load(folder / "model.pt", "microwave").refined_scales
+    assert scales is not None and list(scales) == [0.9]
+    assert not list(folder.glob(".*.partial"))
 
 
 def test_evaluate_mdn_reads_a_shipped_model(workspace, trained, tiny_depth):

@@ -412,6 +412,39 @@ def ship_model(
     return target
 
 
+def recard_shipped(folder: Path, evaluation: Path) -> Path:
+    """A shipped model's `card.json` and model card with the figures of a new evaluation
+    of it (`artic evaluate mdn model=models/mdn/<category>`, whose input record is the
+    model file's sha256), and that evaluation's `refined_intervals.csv` beside the model
+    (or none, when it wrote none); the model file and the training facts stay. Written
+    beside and renamed over, file by file. Returns `folder`."""
+    card = read_card(folder)
+    _check_bytes(folder / MODEL_FILE, card)
+    evaluated = read_manifest(evaluation)
+    if not any(r.content_hash == card.model_sha256[:16] for r in evaluated.inputs.values()):
+        raise InputError(f"{evaluation}: did not evaluate the model of {folder}")
+    new = card.model_copy(update={
+        "evaluation_stage": evaluated.stage,
+        "evaluation_hash": evaluated.content_hash,
+        "figures": _figures(evaluated.stats),
+    })  # fmt: skip
+    training = (folder / CARD_MD).read_text().split("## Shipped with artic")[0]
+    partial = {
+        name: folder / f".{name}.partial" for name in (CARD_MD, CARD_JSON, REFINED_INTERVALS)
+    }
+    partial[CARD_MD].write_text(training.rstrip("\n") + "\n\n" + _shipped_section(new))
+    write_json(partial[CARD_JSON], new.model_dump(mode="json"))
+    intervals = evaluation / REFINED_INTERVALS
+    if intervals.is_file():
+        shutil.copyfile(intervals, partial[REFINED_INTERVALS])
+    else:
+        (folder / REFINED_INTERVALS).unlink(missing_ok=True)
+    for name, path in partial.items():
+        if path.is_file():
+            path.replace(folder / name)
+    return folder
+
+
 def _shipped_section(card: ModelCard) -> str:
     lines = [
         "## Shipped with artic",
