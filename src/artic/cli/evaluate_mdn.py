@@ -2,10 +2,9 @@
 
 Writes `report.md` (Table 3.1's rows: Mean, NN, ICP, Ours, Ours (densest), Ours +
 refinement: kinematics/evaluate.py; the MDN's calibration), `summary.csv`, `errors.csv`
-(per image and method), `refinement.csv`, `calibration.csv`, with the refinement also
-`calibration_refined.csv` and `refined_intervals.csv` (the refined estimate's intervals:
-kinematics/intervals.py), and plots: `errors.png`,
-`calibration.png`, `examples.png` (true axes green, predicted red).
+(per image and method), `refinement.csv`, `calibration.csv`, `calibration_refined.csv`
+and `refined_intervals.csv` (the refined estimate's intervals: kinematics/intervals.py),
+and plots: `errors.png`, `calibration.png`, `examples.png` (true axes green, predicted red).
 """
 
 from __future__ import annotations
@@ -90,7 +89,6 @@ def _write(
 ) -> None:
     from artic.evaluation import kinematics as table
     from artic.evaluation.plots import calibration_plot, error_histograms, examples_sheet
-    from artic.kinematics.intervals import REFINED_INTERVALS, write_refined_intervals
 
     unit = table.configuration_unit(predictor.joint_type)
     rows = table.summary_rows(result.errors, METHODS)
@@ -113,24 +111,17 @@ def _write(
     report = table.table_3_1_report(
         cfg.category.name, rows, result.coverage, groups, cfg.evaluate.levels, unit, len(test)
     )
-    write_csv(tmp / "refinement.csv", *result.refinement_table(test.object_id))
-    if result.refined_coverage:
-        refined = table.calibration_rows(result.refined_coverage, groups)
-        write_csv(tmp / "calibration_refined.csv", ["nominal", *groups], refined)
-        write_refined_intervals(tmp / REFINED_INTERVALS, columns, result.refined_scales)
+    result.write_refinement(tmp, test.object_id, columns, predictor.dof)
     (tmp / "report.md").write_text(report + result.refinement_note(cfg.evaluate.levels))
 
 
 def _finalize(
     cfg: EvaluateMdnConfig, inputs: dict[str, Path], work: Path
 ) -> dict[str, float | int | str]:
-    lines = (work / "summary.csv").read_text().splitlines()
+    rows = [line.split(",") for line in (work / "summary.csv").read_text().splitlines()[1:]]
     stats: dict[str, float | int | str] = {"category": cfg.category.name}
-    for line in lines[1:]:
-        cells = line.split(",")
-        stats[f"{cells[0]} pos/rot/config"] = " / ".join(
-            f"{float(cells[k]):.2f}" for k in (2, 4, 6)
-        )
+    for row in rows:
+        stats[f"{row[0]} pos/rot/config"] = " / ".join(f"{float(row[k]):.2f}" for k in (2, 4, 6))
     return stats
 
 

@@ -6,15 +6,27 @@ MDN's intervals and of the refined estimate's (`refined_scales`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import torch
 from numpy.typing import NDArray
 
-from artic.evaluation.kinematics import coverage, kinematic_errors
+from artic.artifacts.formats import write_csv
+from artic.evaluation.kinematics import (
+    calibration_groups,
+    calibration_rows,
+    coverage,
+    kinematic_errors,
+)
 from artic.kinematics.baselines import IcpBaseline, mean_baseline, nearest_neighbour, nn_features
 from artic.kinematics.data import DepthSplit
-from artic.kinematics.intervals import refined_interval, refined_scales
+from artic.kinematics.intervals import (
+    REFINED_INTERVALS,
+    refined_interval,
+    refined_scales,
+    write_refined_intervals,
+)
 from artic.kinematics.mdn import densest, marginal_interval, most_likely
 from artic.kinematics.predict import Predictor
 from artic.kinematics.preprocess import full_image
@@ -39,18 +51,24 @@ class Evaluation:
     refined_scales: dict[float, NDArray[np.float64]] = field(default_factory=dict)
     refined_coverage: dict[float, NDArray[np.float64]] = field(default_factory=dict)
 
-    def refinement_table(
-        self, object_id: NDArray[np.integer]
-    ) -> tuple[list[str], list[list[float | int | str]]]:
-        """refinement.csv of `evaluate mdn`: header and one row per refined test image
-        (its status, the network's and the returned estimate's depth residuals, metres);
-        no rows when the refinement did not run."""
+    def write_refinement(
+        self, folder: Path, object_id: NDArray[np.integer], columns: list[str], dof: int
+    ) -> None:
+        """The refinement's files of `evaluate mdn` in `folder`: refinement.csv (one row
+        per refined test image: its status, the network's and the returned estimate's
+        depth residuals, metres; no rows when the refinement did not run) and, when its
+        intervals were fitted, calibration_refined.csv and refined_intervals.csv."""
         header = ["image", "object_id", "status", "residual_network_m", "residual_refined_m"]
         rows: list[list[float | int | str]] = [
             [i, int(object_id[i]), status, network, refined]
             for i, (status, network, refined) in enumerate(self.refinement)
         ]
-        return header, rows
+        write_csv(folder / "refinement.csv", header, rows)
+        if self.refined_coverage:
+            groups = calibration_groups(columns, dof)
+            calibration = calibration_rows(self.refined_coverage, groups)
+            write_csv(folder / "calibration_refined.csv", ["nominal", *groups], calibration)
+            write_refined_intervals(folder / REFINED_INTERVALS, columns, self.refined_scales)
 
     def refinement_note(self, levels: tuple[float, ...] = ()) -> str:
         """The report's lines on the refinement: on how many images, the fallback rate,
