@@ -109,7 +109,8 @@ def test_a_shipped_mdn_predicts_its_fixture_images_within_its_documented_error(
 ):
     """`artic predict` on a fresh install: the shipped model, the refinement on (the
     default), sixteen 16-bit PNGs of new objects; the median errors within the card's mean
-    errors and every hinge side right (kinematic_errors: evaluate mdn's metric)."""
+    errors, every hinge side right (kinematic_errors: evaluate mdn's metric), and intervals
+    printed for every estimate (a refined one's from the shipped refined_intervals.csv)."""
     import json
     import time
 
@@ -129,6 +130,7 @@ def test_a_shipped_mdn_predicts_its_fixture_images_within_its_documented_error(
         result = predict_image(image, category, str(camera), None, None, 1000, "most-likely",
                                0, time.perf_counter())  # fmt: skip
         assert result["input"]["model_source"] == "shipped"
+        assert result["intervals"]["levels"], result["intervals"]["of"]  # refined_intervals.csv
         predicted.append([result["estimate"][c] for c in columns])
     card = read_card(STORE / "mdn" / category)
     errors = kinematic_errors(np.array(predicted), np.array(truth["labels"]), columns,
