@@ -97,6 +97,36 @@ def test_obstacles_are_placed_in_their_volume_clear_of_the_task(task):
         env.close()
 
 
+def test_the_door_opens_along_its_grasp_without_nearing_a_limit_and_its_spheres_are_on_the_way():
+    """The door task's geometry (docs/rmp.md): holding the handle as at the start, the
+    door turns to its goal angle with every joint outside the safety envelope's sigma1
+    (0.3 rad) of its limits, and the evaluation spheres lie where that arm passes."""
+    env = RmpEnv("door", "vices", obstacles=True, seed=0)
+    try:
+        path = env.grasp_path(np.linspace(0.0, env.task.scene.goal_angle, 11))
+        assert path is not None
+        low, high = env.limits
+        assert np.minimum(path - low, high - path).min() > 0.3
+        swept = []
+        for q in path[1:]:
+            env.robot.set_state(q)
+            _, points = env.arm_state()
+            assert points is not None
+            swept.append((points.positions, points.radii))
+        on_the_way = 0
+        for seed in range(20):
+            env.reset(seed=seed)
+            reach = env.task.obstacles.radius
+            on_the_way += any(
+                np.any(np.linalg.norm(positions - c, axis=1) < radii + reach)
+                for c in env.sphere_centres
+                for positions, radii in swept
+            )
+        assert on_the_way >= 10
+    finally:
+        env.close()
+
+
 def test_unplaceable_obstacles_are_bad_input():
     base = get_rmp_task("traj")
     tiny = Box3(centre=[0.55, 0.0, 0.45], half_extents=[0.0, 0.0, 0.0])  # one point

@@ -186,18 +186,38 @@ class RmpEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
             self.robot, self._door_body, self._handle - 1, self._grasp_local, GraspConfig()
         )
 
-    def _grasp_configuration(self) -> F64:
-        """The start configuration of the door task: the tool at the handle's grasp
-        point, its z axis into the door (+x), by `solve_ik` from `robot.start_q`."""
-        model = self._door_model
+    def _grasp_target(self, angle: float) -> F64:
+        """The tool pose (4, 4) holding the handle with the door at `angle`: at the
+        handle's grasp point, its z axis into the door (+x when closed), turned with it."""
         target = np.eye(4)
-        target[:3, :3] = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
-        pose = model.link_poses(np.zeros(1))[self._handle]
+        closed = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+        target[:3, :3] = axis_angle_matrix(self._hinge_axis * angle) @ closed
+        pose = self._door_model.link_poses(np.array([angle]))[self._handle]
         target[:3, 3] = pose[:3, :3] @ self._grasp_local + pose[:3, 3]
-        q = solve_ik(self.robot, target, self.start_q, IKSettings(rounds=20))
+        return target
+
+    def _grasp_configuration(self) -> F64:
+        """The start configuration of the door task: `_grasp_target(0)` by `solve_ik`
+        from `robot.start_q`."""
+        q = solve_ik(self.robot, self._grasp_target(0.0), self.start_q, IKSettings(rounds=20))
         if q is None:
             raise InputError("task.scene: the door handle is out of the iiwa's reach")
         return q
+
+    def grasp_path(self, angles: F64) -> F64 | None:
+        """Joint configurations (n, 7) that keep the handle grasped as at the start while
+        the door turns through `angles` (rad, increasing from 0): `solve_ik` of each
+        `_grasp_target`, warm-started from the previous one (the path a policy that opens
+        the door without regrasping follows); None where IK fails. Door task only."""
+        if self._door_model is None:
+            raise ValueError("grasp_path: not the door task")
+        q, path = self.start_q, []
+        for angle in np.asarray(angles, dtype=np.float64):
+            q = solve_ik(self.robot, self._grasp_target(float(angle)), q, IKSettings(rounds=20))
+            if q is None:
+                return None
+            path.append(q)
+        return np.array(path)
 
     def _build_push(self, scene: PushScene) -> None:
         client = self.client

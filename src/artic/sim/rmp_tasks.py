@@ -81,7 +81,7 @@ class DoorScene(_Frozen):
     depth: float = Field(0.35, gt=0, description="cabinet extent along x, m")
     width: float = Field(0.4, gt=0, description="cabinet extent along y (= door width), m")
     height: float = Field(0.5, gt=0, description="cabinet height, m")
-    x: float = Field(0.95, description="cabinet centre x, m (front face at x - depth/2)")
+    x: float = Field(1.15, description="cabinet centre x, m (front face at x - depth/2)")
     y: float = Field(0.0, description="cabinet centre y, m")
     z: float = Field(0.15, ge=0, description="cabinet base height above the table, m")
     chirality: Literal[-1, 1] = Field(1, description="+1: hinge on the -y edge")
@@ -166,13 +166,14 @@ def traj_task() -> RmpTaskConfig:
 @register_rmp_task("door")
 def door_task() -> RmpTaskConfig:
     """Door opening: a cabinet ahead of the robot, its door handle grasped at the start
-    (Chapter 5's grasp model); obstacles in a box between the robot and the door, clear
-    of the door's swing (section 6.4.1)."""
+    (Chapter 5's grasp model), far enough that the grasp's path to the goal angle keeps
+    every joint clear of its limits (`RmpEnv.grasp_path`, docs/rmp.md); obstacles in a box
+    the arm sweeps along that path, clear of the door's swing (section 6.4.1)."""
     return RmpTaskConfig(
         name="door",
         robot=RobotConfig(start_q=_DOWN_START, start_noise=0.0),
         obstacles=ObstacleConfig(
-            volume=Box3(centre=[0.3, -0.25, 0.45], half_extents=[0.1, 0.15, 0.15])
+            volume=Box3(centre=[0.35, -0.15, 0.5], half_extents=[0.15, 0.2, 0.2])
         ),
         scene=DoorScene(),
     )
