@@ -41,7 +41,6 @@ from artic.control.osc import (
     VicesConfig,
     axis_angle_matrix,
     cross,
-    skew,
     vices_command,
     vices_torque,
 )
@@ -64,13 +63,12 @@ from artic.sim.robot import (
     Grasp,
     IKSettings,
     Robot,
-    bias_forces,
     command_torque,
     link_kinematics,
-    mass_matrix,
     pose_matrix,
     release_motors,
     solve_ik,
+    tool_arm_state,
 )
 from artic.sim.scene import handle_grasp_point, load_articulated, load_ground
 from artic.sim.tasks import GraspConfig
@@ -250,16 +248,8 @@ class RmpEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         q, qd = self._joints()
         links = self._links if points else [TOOL_LINK]
         kin = link_kinematics(self.robot, links, q, qd, curvature=points)
-        t = self._tool_row if points else 0
-        rotation = kin.rotation[t]
-        tool = kin.frame[t] + rotation[:, 2] * self.task.robot.tool_offset
-        r = tool - kin.com[t]
-        jv, jw = kin.jacobian[t, :3], kin.jacobian[t, 3:]
-        w, acc, alpha = kin.omega[t], kin.jdot_qdot[t, :3], kin.jdot_qdot[t, 3:]
-        ee_jac = np.vstack([jv - skew(r) @ jw, jw])
-        ee_jdot = np.concatenate([acc + cross(alpha, r) + cross(w, cross(w, r)), alpha])
-        state = ArmState(q, qd, mass_matrix(self.robot, q), bias_forces(self.robot, q, qd),
-                         tool, rotation, ee_jac, ee_jdot)  # fmt: skip
+        row = self._tool_row if points else 0
+        state = tool_arm_state(self.robot, kin, row, q, qd, self.task.robot.tool_offset)
         if not points:
             return state, None
         rows = self._point_rows

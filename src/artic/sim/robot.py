@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from artic.control.osc import ArmState, cross, skew
 from artic.sim.tasks import GraspConfig, RobotConfig
 
 N_JOINTS = 7
@@ -452,3 +453,26 @@ def link_kinematics(
         )
         jdot_qdot = (shifted - jacobian) @ qd / h
     return LinkKinematics(com, rotation, frame, velocity, omega, jacobian, jdot_qdot)
+
+
+def tool_arm_state(
+    robot: Robot,
+    kin: LinkKinematics,
+    row: int,
+    q: NDArray[np.float64],
+    qd: NDArray[np.float64],
+    tool_offset: float,
+) -> ArmState:
+    """The controllers' view of the arm (`control.osc.ArmState`) at q (7,), qd (7,): the
+    tool point `tool_offset` m along the z axis of the link in row `row` of `kin` (the
+    last link, `TOOL_LINK`), its (6, 7) Jacobian and J'q' (0 if `kin` has no curvature
+    terms), and M(q), C q' + g of the arm alone."""
+    rotation = kin.rotation[row]
+    tool = kin.frame[row] + rotation[:, 2] * tool_offset
+    r = tool - kin.com[row]
+    jv, jw = kin.jacobian[row, :3], kin.jacobian[row, 3:]
+    w, acc, alpha = kin.omega[row], kin.jdot_qdot[row, :3], kin.jdot_qdot[row, 3:]
+    ee_jac = np.vstack([jv - skew(r) @ jw, jw])
+    ee_jdot = np.concatenate([acc + cross(alpha, r) + cross(w, cross(w, r)), alpha])
+    return ArmState(q, qd, mass_matrix(robot, q), bias_forces(robot, q, qd), tool, rotation,
+                    ee_jac, ee_jdot)  # fmt: skip

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from artic.learning.shaping import potential, shaped_rewards, shaping_terms
+from artic.sim.shaping import potential, shaped_rewards, shaping_terms
 
 
 def test_with_gamma_one_the_shaping_telescopes():
