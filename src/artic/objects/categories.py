@@ -1,5 +1,6 @@
-"""The six object categories of the thesis' synthetic dataset (section 3.2.3, Appendix A)
-and the registry that maps a category name to its builder.
+"""The six object categories of the thesis' synthetic dataset (section 3.2.3, Appendix A),
+the two mechanisms of Chapter 7's tasks (section 7.4: slide, lever), and the registry
+that maps a category name to its builder.
 
 `build(spec)` is pure: the spec fully determines the object. Builders share the part
 constructors of `artic.objects.parts`; conventions (frames, hinge sides, joint order)
@@ -18,7 +19,9 @@ from artic.objects.parts import (
     assemble,
     drawer,
     flap_door,
+    lever_arm,
     shell_boxes,
+    slide_carriage,
     vertical_door,
 )
 from artic.objects.spec import ObjectSpec
@@ -151,3 +154,46 @@ def build_refrigerator(spec: ObjectSpec) -> ArticulatedObject:
         (split - wall / 2, split + wall / 2),
     )
     return assemble(spec, [*_shell(spec), divider], doors)
+
+
+def _block(spec: ObjectSpec) -> Box:
+    """The solid body of the Chapter 7 mechanisms: the whole depth x width x height box."""
+    half_d, half_w = spec.depth / 2, spec.width / 2
+    return Box((-half_d, half_d), (-half_w, half_w), (0.0, spec.height))
+
+
+@register_category("slide")
+def build_slide(spec: ObjectSpec) -> ArticulatedObject:
+    """A knob on a carriage sliding along a rail on the front of a solid block (section
+    7.4's slide): prismatic along (0, chirality, 0), the travel (the joint limits)
+    centred on the front at mid-height. The rail is a bar of `panel_thickness` square
+    section spanning the carriage's sweep."""
+    p = spec.parts
+    travel = spec.joint_limits[0]
+    reach = 0.5 * (travel[1] - travel[0]) + p.handle_inset  # sweep of the carriage's edges
+    if reach > spec.width / 2 or p.handle_inset > spec.height / 2:
+        raise ValueError(
+            f"width: a {spec.width} x {spec.height} m slide front has no room for "
+            f"{travel[1] - travel[0]} m of travel of a {2 * p.handle_inset} m carriage"
+        )
+    front, side, centre_z = _front_x(spec), p.panel_thickness, spec.height / 2
+    rail = Box((front - side, front), (-reach, reach), (centre_z - side / 2, centre_z + side / 2))
+    part = slide_carriage("slider_0", p, front - side, centre_z, travel, spec.chirality)
+    return assemble(spec, [_block(spec), rail], [part])
+
+
+@register_category("lever")
+def build_lever(spec: ObjectSpec) -> ArticulatedObject:
+    """An arm hinged at the centre of a solid block's front (section 7.4's lever), a knob
+    at its free end: axis (-chirality, 0, 0), up at q = 0, the knob turning towards
+    chirality * y. Knob radius min(width, height) / 2 - 2 `handle_inset`, so the arm
+    stays in front of the block's front face at every angle."""
+    p = spec.parts
+    length = min(spec.width, spec.height) / 2 - 2.0 * p.handle_inset
+    if length <= 0:
+        raise ValueError(
+            f"width: a {spec.width} x {spec.height} m lever front leaves no arm beside "
+            f"handle_inset {p.handle_inset} m (knob radius min(width, height) / 2 - 2 inset)"
+        )
+    arm = lever_arm("lever_0", p, _front_x(spec), spec.height / 2, length, spec.chirality)
+    return assemble(spec, [_block(spec)], [arm])

@@ -56,8 +56,9 @@ class Inertial:
 @dataclass(frozen=True)
 class Link:
     """A rigid part. `role` is its part in the kinematic graph (section 2.3): "body",
-    "door", "drawer", "handle" (Appendix A), or a Chapter 4 role such as "base", "arm",
-    "head", "column", "seat", "back", "armrest", "caster", "wheel" (docs/objects.md).
+    "door", "drawer", "handle" (Appendix A), "slider", "lever" (Chapter 7), or a Chapter 4
+    role such as "base", "arm", "head", "column", "seat", "back", "armrest", "caster",
+    "wheel" (docs/objects.md).
     `semantic` is a free-text label (PartNet-Mobility's semantics.txt), "" when unset."""
 
     name: str

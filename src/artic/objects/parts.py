@@ -1,5 +1,6 @@
 """Building blocks of the procedural objects: boxes, watertight meshes, mass properties,
-doors, drawers, handles, and the assembly of a body plus its moving parts.
+doors, drawers, the slide's carriage and the lever's arm (Chapter 7), handles and knobs,
+and the assembly of a body plus its moving parts.
 
 Every part is a union of axis-aligned boxes. `union_mesh` turns such a union into one
 closed, outward-oriented triangle mesh (faces between occupied and empty cells of the
@@ -23,7 +24,8 @@ from artic.objects.spec import Chirality, JointKind, ObjectSpec, PartsConfig
 
 Interval = tuple[float, float]
 BarDirection = Literal["y", "z"]
-MovingRole = Literal["door", "drawer"]
+HandleShape = Literal["bar", "knob"]
+MovingRole = Literal["door", "drawer", "slider", "lever"]
 
 _DECIMALS = 9  # box coordinates are snapped to 1 nm so touching faces coincide exactly
 
@@ -38,15 +40,18 @@ class Box(NamedTuple):
 
 class HandleMount(NamedTuple):
     """Where a handle sits on its moving part: `position` (3,) on the part's front face,
-    in the part's link frame, metres; the bar runs along `direction`, `length` metres."""
+    in the part's link frame, metres; the bar runs along `direction`, `length` metres.
+    `shape`: "bar" (a bar on two end posts) or "knob" (one block; `handle_boxes`)."""
 
     position: NDArray[np.float64]
     direction: BarDirection
     length: float
+    shape: HandleShape = "bar"
 
 
 class MovingPart(NamedTuple):
-    """A door or drawer: its joint in the body frame and its boxes in the joint frame.
+    """A door, drawer, slider or lever: its joint in the body frame and its boxes in the
+    joint frame.
 
     origin: (3,) joint-frame origin in the body frame (a point on the axis), metres.
     axis: (3,) unit joint axis (joint frame = body orientation). boxes: in the joint
@@ -182,7 +187,11 @@ def handle_length(extent: float, parts: PartsConfig) -> float:
 
 def handle_boxes(mount: HandleMount, parts: PartsConfig) -> list[Box]:
     """A bar of square section standing `handle_standoff` in front of the surface (-x),
-    on two end posts; handle frame at the mount point on the surface. Metres."""
+    on two end posts; handle frame at the mount point on the surface. Metres.
+
+    A "knob" mount is one block reaching as far in front of the surface as a bar does
+    (`handle_standoff + handle_thickness`), `handle_thickness` wide across `direction`
+    and `mount.length` long along it."""
     half, side, standoff = mount.length / 2, parts.handle_thickness, parts.handle_standoff
     across = (-side / 2, side / 2)
     pieces = [
@@ -190,6 +199,8 @@ def handle_boxes(mount: HandleMount, parts: PartsConfig) -> list[Box]:
         ((-standoff, 0.0), (-half, -half + side)),  # post
         ((-standoff, 0.0), (half - side, half)),  # post
     ]
+    if mount.shape == "knob":
+        pieces = [((-(standoff + side), 0.0), (-half, half))]
     if mount.direction == "y":
         return [Box(x, along, across) for x, along in pieces]
     return [Box(x, across, along) for x, along in pieces]
@@ -286,6 +297,73 @@ def drawer(
     )
 
 
+def _knob(parts: PartsConfig, face: float) -> HandleMount:
+    """A knob at its part's link origin, its long side along z: `handle_length`, capped
+    at `handle_fraction` of the part's face (`face` metres square, as bars are capped);
+    ValueError unless its `handle_thickness` fits on the face."""
+    if parts.handle_thickness > face:
+        raise ValueError(
+            f"handle_thickness: a {parts.handle_thickness} m knob does not fit on a "
+            f"{face} m part face (2 x handle_inset)"
+        )
+    length = min(parts.handle_length, parts.handle_fraction * face)
+    return HandleMount(np.zeros(3), "z", length, "knob")
+
+
+def slide_carriage(
+    name: str,
+    parts: PartsConfig,
+    rail_front_x: float,
+    centre_z: float,
+    travel: Interval,
+    direction: Chirality,
+) -> MovingPart:
+    """A square plate (side 2 `handle_inset`, `door_thickness` thick) riding `gap` in
+    front of a rail whose front face is the plane x = `rail_front_x`, a knob at its centre.
+
+    Prismatic along (0, `direction`, 0); the travel [lower, upper] (metres) is centred
+    on y = 0: the plate's centre is at y = direction (q - (lower + upper) / 2), z =
+    `centre_z`. Joint origin: centre of the plate's front face at q = 0."""
+    inset, thick = parts.handle_inset, parts.door_thickness
+    mid = 0.5 * (travel[0] + travel[1])
+    return MovingPart(
+        name=name,
+        role="slider",
+        joint_type="prismatic",
+        origin=np.array([rail_front_x - parts.gap - thick, -direction * mid, centre_z]),
+        axis=np.array([0.0, float(direction), 0.0]),
+        boxes=(Box((0.0, thick), (-inset, inset), (-inset, inset)),),
+        handle=_knob(parts, 2.0 * inset),
+    )
+
+
+def lever_arm(
+    name: str,
+    parts: PartsConfig,
+    front_x: float,
+    pivot_z: float,
+    length: float,
+    direction: Chirality,
+) -> MovingPart:
+    """A flat bar (`door_thickness` thick, 2 `handle_inset` wide) `gap` in front of the
+    plane x = `front_x`, hinged at one end about a horizontal axis along x through
+    (y = 0, z = `pivot_z`), with a knob `length` metres from the axis.
+
+    At q = 0 the bar points up (+z); q > 0 turns the knob towards `direction` * y in the
+    front plane: axis (-direction, 0, 0). The bar reaches `handle_inset` past the axis
+    and past the knob's centre. Joint origin: the pivot on the bar's front face."""
+    inset, thick = parts.handle_inset, parts.door_thickness
+    return MovingPart(
+        name=name,
+        role="lever",
+        joint_type="revolute",
+        origin=np.array([front_x - parts.gap - thick, 0.0, pivot_z]),
+        axis=np.array([-float(direction), 0.0, 0.0]),
+        boxes=(Box((0.0, thick), (-inset, inset), (-inset, length + inset)),),
+        handle=_knob(parts, 2.0 * inset)._replace(position=np.array([0.0, 0.0, length])),
+    )
+
+
 def _link(name: str, role: str, boxes: Sequence[Box], density: float) -> Link:
     mesh = union_mesh(boxes)
     return Link(name=name, role=role, mesh=mesh, inertial=lazy_mass_properties(mesh, density))
@@ -297,7 +375,8 @@ def assemble(
     """Links and joints in part-id order: body, then each moving part and its handle.
 
     Joint k of the object is `joint_<k>` (body -> part); each handle hangs on a fixed
-    joint `handle_<k>_fixed` at its mount point. Densities, damping, friction and
+    joint `handle_<k>_fixed` at its mount point. Densities (`drawer_density` for
+    drawers, `door_density` for doors, sliders and levers), damping, friction and
     effort/velocity limits come from `spec.parts`; limits from `spec.joint_limits`.
     """
     if len(moving) != spec.dof:

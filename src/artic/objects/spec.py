@@ -73,7 +73,10 @@ class PartsConfig(_Frozen):
     """Construction constants of the parts; the thesis gives none, these are ours.
 
     Lengths in metres, densities in kg/m^3. Damping is N m s/rad (revolute) or N s/m
-    (prismatic), friction N m or N, effort N m or N, velocity rad/s or m/s.
+    (prismatic), friction N m or N, effort N m or N, velocity rad/s or m/s. Chapter 7's
+    slide and lever size their knob with the handle fields, their carriage or arm with
+    `door_thickness` and `handle_inset`, and weigh it with `door_density`
+    (docs/objects.md, "Chapter 7 mechanisms").
     """
 
     panel_thickness: float = Field(default=0.02, gt=0, description="body shell wall thickness, m")

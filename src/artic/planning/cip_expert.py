@@ -1,0 +1,128 @@
+"""The kinematic expert of `cip-demos` (issue 21 part 5; thesis section 7.3, "Ten
+demonstrations from an expert policy"): Chapter 5's grasp path (`planning/grasp.py`,
+Algorithm 2's GraspPath) along the object's motion, played as VICES actions at a fixed
+stiffness through `CipEnv`.
+
+From a CIP start (the gripper closed on the handle): the grasp is the tool pose held
+fixed to the handle's link at the current opening; every action asks for the tool pose
+that grasp has `lead` further along the object's joint (toward beta_c and beyond), as a
+displacement and rotation in the object's frame (the environment's action frame),
+scaled to the action range, at the fixed stiffness `stiffness_action`. Demonstrations
+from home (the E2E+BC setting's) are not built yet: played as VICES actions from home,
+a reach to the handle ran a joint into its limit on 2 of 6 episodes and never grasped
+(docs/cip.md).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field
+from scipy.spatial.transform import Rotation
+
+from artic.config.schemas import Strict
+from artic.planning.grasp import Grasp, grasp_from_world_pose, grasp_path
+from artic.sim.cip_envs import CipEnv
+from artic.sim.robot import IKSettings, solve_ik
+
+F64 = NDArray[np.float64]
+
+
+class ExpertConfig(Strict):
+    """The expert's constants (ours)."""
+
+    lead: float = Field(0.08, gt=0, description="target ahead along the object's joint, rad or m")
+    overshoot: float = Field(1.3, ge=1, description="drive the joint to this x the success value")
+    stiffness_action: float = Field(
+        0.0, ge=-1, le=1, description="the 6 stiffness actions (0: mid-range k_p)"
+    )
+
+
+class Demonstration(NamedTuple):
+    """One episode of transitions: obs (T, 30), actions (T, 13), rewards (T,), next_obs
+    (T, 30), dones (T,) (terminated, not truncated); success of the episode."""
+
+    obs: NDArray[np.float32]
+    actions: NDArray[np.float32]
+    rewards: F64
+    next_obs: NDArray[np.float32]
+    dones: NDArray[np.bool_]
+    success: bool
+
+
+def _tool_world(env: CipEnv) -> F64:
+    tool, rotation = env.tool_in_object()
+    local = np.eye(4)
+    local[:3, :3], local[:3, 3] = rotation, tool
+    return env.object_pose @ local
+
+
+def pose_action(env: CipEnv, target: F64, stiffness: float, close: bool) -> NDArray[np.float32]:
+    """(13,) action moving the tool toward the world pose `target` (4, 4): displacement
+    and rotation in the object's frame over the VICES scales, clipped to [-1, 1]."""
+    cfg = env.task.vices
+    current = _tool_world(env)
+    to_object = env.object_pose[:3, :3].T
+    dp = to_object @ (target[:3, 3] - current[:3, 3])
+    dr = to_object @ Rotation.from_matrix(target[:3, :3] @ current[:3, :3].T).as_rotvec()
+    action = np.full(13, stiffness)
+    action[:3] = np.clip(dp / cfg.position_scale, -1.0, 1.0)
+    action[3:6] = np.clip(dr / cfg.rotation_scale, -1.0, 1.0)
+    action[12] = 1.0 if close else -1.0
+    return action.astype(np.float32)
+
+
+def held_grasp(env: CipEnv) -> Grasp:
+    """The grasp the tool holds now: its pose fixed to the handle's link at q_O."""
+    link = env.model.link_index("handle_0")
+    q_o, _ = env.object_joint()
+    return grasp_from_world_pose(env.model, link, np.array([q_o]), _tool_world(env), "handle")
+
+
+def expert_action(env: CipEnv, grasp: Grasp, cfg: ExpertConfig) -> NDArray[np.float32]:
+    """The action following `grasp`'s path `lead` ahead of the object's joint."""
+    q_o, _ = env.object_joint()
+    goal = cfg.overshoot * env.task.success
+    ahead = min(q_o + cfg.lead, max(goal, q_o))
+    target = grasp_path(env.model, grasp, np.array([[ahead]]))[0]
+    return pose_action(env, target, cfg.stiffness_action, close=True)
+
+
+def demonstrate(env: CipEnv, seed: int, start_q: F64, cfg: ExpertConfig) -> Demonstration:
+    """One expert episode from a CIP start: `env.reset(seed=seed)` with the arm at
+    `start_q` (7,) and the gripper closed on the handle there, then `expert_action`
+    until the episode ends."""
+    obs, _ = env.reset(seed=seed, options={"start_q": start_q, "grasp": True})
+    grasp = held_grasp(env)
+    rows: list[tuple[NDArray[np.float32], NDArray[np.float32], float, NDArray[np.float32], bool]]
+    rows = []
+    done, success = False, False
+    while not done:
+        action = expert_action(env, grasp, cfg)
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        rows.append((obs, action, float(reward), next_obs, bool(terminated)))
+        obs, done, success = next_obs, bool(terminated or truncated), bool(info["success"])
+    o, a, r, n, d = zip(*rows, strict=True)
+    return Demonstration(np.array(o), np.array(a), np.array(r), np.array(n), np.array(d), success)
+
+
+def grasp_path_margin(env: CipEnv, pose: F64, q: F64, upto: float, points: int = 8) -> float:
+    """The least distance (rad) of any joint to its limits while the arm, started at q
+    (7,) holding the reference handle grasp of the object at `pose` (4, 4), follows
+    that grasp's path to the opening `upto` (IK of `points` poses, warm-started);
+    -inf where IK fails. The expert's choice among start configurations."""
+    model = env.object_model(pose)
+    link = model.link_index("handle_0")
+    grasp = grasp_from_world_pose(model, link, np.zeros(1), env.handle_grasp(pose), "handle")
+    low, high = env.limits
+    margin = np.inf
+    for opening in np.linspace(0.0, upto, points):
+        target = grasp_path(model, grasp, np.array([[opening]]))[0]
+        solved = solve_ik(env.robot, target, q, IKSettings(rounds=20))
+        if solved is None:
+            return -np.inf
+        q = solved
+        margin = min(margin, float(np.minimum(q - low, high - q).min()))
+    return margin
