@@ -5,7 +5,7 @@ stiffness through `CipEnv`.
 
 From a CIP start (the gripper closed on the handle): the grasp is the tool pose held
 fixed to the handle's link at the current opening; every action asks for the tool pose
-that grasp has `lead` further along the object's joint (toward beta_c and beyond), as a
+that grasp has `lead` m further along its path (toward beta_c and beyond), as a
 displacement and rotation in the object's frame (the environment's action frame),
 scaled to the action range, at the fixed stiffness `stiffness_action`. Demonstrations
 from home (the E2E+BC setting's) are not built yet: played as VICES actions from home,
@@ -33,7 +33,7 @@ F64 = NDArray[np.float64]
 class ExpertConfig(Strict):
     """The expert's constants (ours)."""
 
-    lead: float = Field(0.08, gt=0, description="target ahead along the object's joint, rad or m")
+    lead: float = Field(0.04, gt=0, description="target ahead along the tool's path, m")
     overshoot: float = Field(1.3, ge=1, description="drive the joint to this x the success value")
     stiffness_action: float = Field(
         0.0, ge=-1, le=1, description="the 6 stiffness actions (0: mid-range k_p)"
@@ -82,10 +82,15 @@ def held_grasp(env: CipEnv) -> Grasp:
 
 
 def expert_action(env: CipEnv, grasp: Grasp, cfg: ExpertConfig) -> NDArray[np.float32]:
-    """The action following `grasp`'s path `lead` ahead of the object's joint."""
+    """The action toward the pose `grasp` has when the tool point has moved `lead` m
+    further along its path (the object's joint advanced by lead / the point's speed
+    along it), the joint at most `overshoot` x beta_c's threshold."""
     q_o, _ = env.object_joint()
-    goal = cfg.overshoot * env.task.success
-    ahead = min(q_o + cfg.lead, max(goal, q_o))
+    goal = max(cfg.overshoot * env.task.success, q_o)
+    step = 1e-3
+    here, there = grasp_path(env.model, grasp, np.array([[q_o], [q_o + step]]))
+    speed = float(np.linalg.norm(there[:3, 3] - here[:3, 3])) / step  # m per joint unit
+    ahead = min(q_o + cfg.lead / max(speed, 1e-6), goal)
     target = grasp_path(env.model, grasp, np.array([[ahead]]))[0]
     return pose_action(env, target, cfg.stiffness_action, close=True)
 

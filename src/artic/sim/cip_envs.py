@@ -130,9 +130,8 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
 
     @property
     def parts(self) -> PartsConfig:
-        """The object's part constants (artic.objects' defaults, the task's joint)."""
-        o = self.task.object
-        return PartsConfig(joint_damping=o.joint_damping, joint_friction=o.joint_friction)
+        """The object's part constants (`CipObject.parts`)."""
+        return self.task.object.parts
 
     def _build(self) -> None:
         """The whole scene in the (empty) client, always by the same command sequence."""
@@ -172,7 +171,8 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         """(4, 4) world tool pose holding the handle (`handle_0`) at the middle of its
         bar, the object closed at `pose` (default: this episode's): z (the approach) into
         the object's front (+x of its frame), the fingers closing across the bar (y
-        perpendicular to it). The reference grasp of the task (demonstrations, tests)."""
+        perpendicular to it), the fingertips clear of the surface behind the handle. The
+        reference grasp of the task (demonstrations, tests)."""
         pose = self.object_pose if pose is None else pose
         model = self.object_model(pose)
         link = model.link_index("handle_0")
@@ -186,7 +186,12 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         grasp[:3, 1] = across / np.linalg.norm(across)
         grasp[:3, 2] = approach
         grasp[:3, 0] = np.cross(grasp[:3, 1], approach)
+        # the pads' centre `thickness / 2` behind the handle's front, or further out so
+        # the fingertips stay `grasp_clearance` off the surface it stands on (a knob)
         point = handle_grasp_point(mesh, self.parts.handle_thickness)
+        depth = float(extent[0])
+        reach = depth - self.task.grasp_clearance - self.task.gripper.finger_length / 2
+        point[0] = mesh.vertices[:, 0].min() + min(self.parts.handle_thickness / 2, reach)
         grasp[:3, 3] = frame[:3, :3] @ point + frame[:3, 3]
         return grasp
 

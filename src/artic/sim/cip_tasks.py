@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from artic.control.osc import VicesConfig
 from artic.control.safety import SafetyConfig
 from artic.named import Registry
+from artic.objects.spec import PartsConfig
 from artic.sim.gripper import GripperConfig
 from artic.sim.tasks import RobotConfig
 
@@ -48,8 +49,10 @@ class CipObject(_Frozen):
     z: float = Field(0.0, ge=0, description="body base height above the table, m")
     jitter_xy: float = Field(0.02, ge=0, description="uniform +- jitter of x and y, m")
     jitter_yaw: float = Field(0.1, ge=0, description="uniform +- jitter of the yaw, rad")
-    joint_damping: float = Field(0.5, ge=0, description="object joint damping")
-    joint_friction: float = Field(0.2, ge=0, description="object joint friction, N m or N")
+    parts: PartsConfig = Field(
+        default_factory=PartsConfig,
+        description="part constants (artic.objects; joint damping and friction included)",
+    )
 
 
 class CipTaskConfig(_Frozen):
@@ -71,6 +74,9 @@ class CipTaskConfig(_Frozen):
         10, ge=1, description="B: no finger contact for this many actions ends the episode"
     )
     grasp_time: float = Field(0.5, gt=0, description="Gamma closing on the grasp at reset, s")
+    grasp_clearance: float = Field(
+        0.01, ge=0, description="reference grasp: fingertips this far off the handle's base, m"
+    )
 
     @property
     def physics_dt(self) -> float:
@@ -119,6 +125,7 @@ def door_task() -> CipTaskConfig:
             joint_limit=1.6,
             x=1.1,
             z=0.15,
+            parts=PartsConfig(joint_damping=0.5, joint_friction=0.2),
         ),
         success=0.3,
     )
@@ -139,6 +146,43 @@ def drawer_task() -> CipTaskConfig:
             joint_limit=0.2,
             x=1.1,
             z=0.15,
+            parts=PartsConfig(joint_damping=0.5, joint_friction=0.2),
         ),
         success=0.1,
     )
+
+
+#: the knob of the slide and the lever: the category configs' part constants
+#: (conf/common/category/slide.yaml, lever.yaml; docs/objects.md)
+_KNOB = {
+    "handle_length": 0.04, "handle_fraction": 0.7, "handle_thickness": 0.025,
+    "handle_standoff": 0.015, "handle_inset": 0.03, "gap": 0.002,
+}  # fmt: skip
+
+
+@register_cip_task("slide")
+def slide_task() -> CipTaskConfig:
+    """Slide a knob 0.1 m along its rail (ours: half the 0.2 m travel)."""
+    parts = PartsConfig(**_KNOB, door_thickness=0.01, joint_damping=1.0, joint_friction=1.0,
+                        joint_effort=50.0, joint_velocity=0.5)  # fmt: skip
+    return CipTaskConfig(
+        name="slide",
+        robot=RobotConfig(start_q=HOME),
+        object=CipObject(category="slide", joint_type="prismatic", depth=0.15, width=0.4,
+                         height=0.25, joint_limit=0.2, x=1.0, z=0.1, parts=parts),
+        success=0.1,
+    )  # fmt: skip
+
+
+@register_cip_task("lever")
+def lever_task() -> CipTaskConfig:
+    """Turn a lever past 1.57 rad (the released code's threshold)."""
+    parts = PartsConfig(**_KNOB, door_thickness=0.02, joint_damping=0.2, joint_friction=1.0,
+                        joint_effort=20.0, joint_velocity=2.0)  # fmt: skip
+    return CipTaskConfig(
+        name="lever",
+        robot=RobotConfig(start_q=HOME),
+        object=CipObject(category="lever", joint_type="revolute", depth=0.15, width=0.5,
+                         height=0.5, joint_limit=1.75, x=1.05, z=0.1, parts=parts),
+        success=1.57,
+    )  # fmt: skip
