@@ -9,7 +9,7 @@ level: module top, inside functions, under `if TYPE_CHECKING:`. The rules:
 - no import cycle between modules of `artic.cli`;
 - every package sits on a floor of the Layers table of docs/architecture.md, and a
   package imports only packages on lower floors (never its own floor or higher);
-- `src/artic/cli/*.py` holds fewer than 3,500 lines.
+- `src/artic/cli/*.py` holds fewer than 4,000 lines.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ SRC = ROOT / "src"
 PACKAGE = SRC / "artic"
 ARCHITECTURE = ROOT / "docs" / "architecture.md"
 CLI = "artic.cli"
-CLI_MAX_LINES = 3500
+CLI_MAX_LINES = 4000  # Chapter 7 adds five stages of ~80 lines (docs/architecture.md)
 
 
 def _module_name(path: Path) -> str:
@@ -243,7 +243,7 @@ def test_no_import_cycle_in_the_cli() -> None:
     assert not found, "import cycles in artic.cli:\n" + "\n".join(" <-> ".join(c) for c in found)
 
 
-def test_cli_is_under_3500_lines() -> None:
+def test_cli_is_under_4000_lines() -> None:
     lines = {
         p.name: len(p.read_text(encoding="utf-8").splitlines()) for p in PACKAGE.glob("cli/*.py")
     }

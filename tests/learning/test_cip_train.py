@@ -30,7 +30,7 @@ CFG = CipTrainConfig(episodes=4, eval_every=2, eval_rollouts=2,
 
 
 def test_the_settings_add_structure_in_the_thesis_order():
-    assert SETTING_NAMES == tuple(SETTINGS)
+    assert tuple(SETTINGS) == SETTING_NAMES
     e2e, head, safety, mv, cip, cip_bc, e2e_bc = (SETTINGS[s] for s in SETTING_NAMES)
     assert e2e.grasp == "home" and not e2e.safety and not e2e.contact_termination
     assert head.grasp == "random" and head.ik == "naive" and not head.safety

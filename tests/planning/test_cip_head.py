@@ -86,7 +86,9 @@ def test_a_tiny_cip_run_resumes_to_the_same_bytes(initiation_set):
         return train_run(TASK, "cip", 0, cfg, starts, state=state, save=saved.append), saved
 
     rows, saved = run()
-    assert saved[-1]["starts"]["bandit"]["pulls"] and sum(saved[-1]["starts"]["bandit"]["pulls"]) >= 4
+    assert (
+        saved[-1]["starts"]["bandit"]["pulls"] and sum(saved[-1]["starts"]["bandit"]["pulls"]) >= 4
+    )
     resumed, again = run(saved[0])
     assert resumed == rows and again[-1]["starts"] == saved[-1]["starts"]
     policy = [t.numpy().tobytes() for t in saved[-1]["td3"]["policy"].values()]

@@ -91,7 +91,9 @@ def test_actions_are_given_in_the_object_frame():
         a[0], a[5] = 1.0, 0.5  # +x of the object, a turn about its z
         world = env.to_world(a)
         rotation = env.object_pose[:3, :3]
-        assert np.allclose(world[:3], rotation[:, 0]) and np.allclose(world[3:6], 0.5 * rotation[:, 2])
+        assert np.allclose(world[:3], rotation[:, 0]) and np.allclose(
+            world[3:6], 0.5 * rotation[:, 2]
+        )
         assert env.observation_space.contains(env.reset(seed=1)[0])
     finally:
         env.close()

@@ -91,7 +91,9 @@ def test_the_payload_is_the_gripper_mass_in_the_model(world):
     release_motors(robot)
     for _ in range(240):
         q, qd = robot.q(), robot.qd()
-        hold = bias_forces(robot, q, qd) + gripper.payload(q).bias - mass_matrix(robot, q) @ (10 * qd)
+        hold = (
+            bias_forces(robot, q, qd) + gripper.payload(q).bias - mass_matrix(robot, q) @ (10 * qd)
+        )
         command_torque(robot, hold)
         client.stepSimulation()
     with_payload = np.abs(robot.q() - Q).max()

@@ -50,7 +50,8 @@ _EXTRA = {"allow_extra_args": False, "ignore_unknown_options": True}
 _TASK = typer.Option(
     None,
     "--task",
-    help="the task (= task=NAME): Chapter 5 drawer, microwave, tball; Chapter 6 traj, door, push",
+    help="the task (= task=NAME): Chapter 5 drawer, microwave, tball; Chapter 6 traj, door, "
+    "push; Chapter 7 door, drawer, slide, lever",
 )
 
 

@@ -11,6 +11,10 @@ the uninterrupted run's bytes. Every block starts from a fresh reset: episode k 
 `seed` is reset with `episode_seed(seed, k)`, evaluation rollout j after block b with
 `episode_seed(seed, -(b * rollouts + j) - 1)`.
 
+The stage `artic train-cip` (`cli/train_cip.py`) runs (setting, seed) pairs of
+`TrainCipConfig`; its inputs are read back here (`read_demonstrations`: the successful
+episodes of a cip-demos folder) and in `planning/cip_demos.py` (the initiation set).
+
 | setting | start | IK of the grasp | envelope sigma | B: lost contact | demonstrations |
 |---|---|---|---|---|---|
 | e2e | home, open hand | - | no | no | no |
@@ -25,23 +29,32 @@ the uninterrupted run's bytes. Every block starts from a fresh reset: episode k 
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, Literal, NamedTuple, Protocol
 
 import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from artic.config.schemas import Strict
+from artic.artifacts.formats import read_npz
+from artic.artifacts.manifest import Manifest, read_manifest, verify_file
+from artic.config.schemas import Strict, TrainingStageConfig
 from artic.errors import InputError
 from artic.learning.td3_settings import Demonstrations, Td3Config
 from artic.sim.cip_envs import CipEnv
-from artic.sim.cip_tasks import CipTaskConfig
+from artic.sim.cip_tasks import CipObject, CipTaskConfig
 
 Setting = Literal["e2e", "head", "safety", "mv", "cip", "cip_bc", "e2e_bc"]
 SETTING_NAMES: tuple[Setting, ...] = ("e2e", "head", "safety", "mv", "cip", "cip_bc", "e2e_bc")
 CURVE_COLUMNS = ["setting", "seed", "episode", "success", "success_best", "violation_rate",
                  "violation_rate_train", "return_mean"]  # fmt: skip
+CURVE = "learning_curve.csv"
+DEMOS_NPZ = "demos.npz"
+DEMO_ARRAYS = ("obs", "actions", "rewards", "next_obs", "dones", "episode", "success")
+"""The arrays of cip-demos' demos.npz: every recorded transition (N rows: obs (N, 30),
+actions (N, 13), rewards (N,), next_obs (N, 30), dones (N,) 1 where the episode
+terminated, episode (N,) its episode's index) and success (E,) of each episode."""
 
 
 class SettingSpec(NamedTuple):
@@ -299,3 +312,122 @@ def train_run(
     finally:
         env.close()
         evaluation_env.close()
+
+
+# -- the train-cip stage ------------------------------------------------------------------
+
+
+class TrainCipConfig(TrainingStageConfig):
+    """The config of `artic train-cip` (conf/train_cip/config.yaml): runs (setting, seed),
+    setting-major, each `train_run` with the setting's head and, under the BC settings,
+    the successful demonstrations of a cip-demos folder."""
+
+    task: CipTaskConfig
+    settings: list[Setting] = Field(
+        default_factory=lambda: list(SETTING_NAMES), description="settings trained (section 7.3)"
+    )
+    seeds: int = Field(1, gt=0, description="independent runs per setting (thesis: 10)")
+    train: CipTrainConfig = Field(default_factory=CipTrainConfig, description="one run")
+    initiation_set: str | None = Field(
+        None, description="a grasp-candidates output folder of the task (the grasp settings)"
+    )
+    demos: str | None = Field(None, description="a cip-demos output folder of the task (BC)")
+
+    @field_validator("settings")
+    @classmethod
+    def _distinct(cls, value: list[str]) -> list[str]:
+        if not value or len(set(value)) != len(value):
+            raise ValueError(f"settings: one or more distinct names of {', '.join(SETTINGS)}")
+        return value
+
+    def run_of(self, chunk: int) -> tuple[Setting, int]:
+        """(setting, seed index) of chunk `chunk`: setting-major."""
+        return self.settings[chunk // self.seeds], chunk % self.seeds
+
+    def input_paths(self) -> dict[str, Path]:
+        """The inputs the settings read: the initiation set if one starts at a grasp, the
+        demonstrations if one learns from them; InputError naming the field when it is
+        needed and null."""
+        needs = {
+            "initiation_set": [s for s in self.settings if SETTINGS[s].grasp != "home"],
+            "demos": [s for s in self.settings if SETTINGS[s].demos],
+        }
+        paths: dict[str, Path] = {}
+        for field, settings in needs.items():
+            folder = getattr(self, field)
+            if settings and folder is None:
+                raise InputError(f"config field {field}: null, but setting "
+                                 f"{', '.join(settings)} needs it")  # fmt: skip
+            if settings:
+                paths[field] = Path(folder)
+        return paths
+
+
+def run_seed(base: int, index: int) -> int:
+    """TD3's seed of run `index`, the same under every setting: run i of each setting
+    meets the same episode seeds, hence the same object poses (paired runs)."""
+    return int(np.random.SeedSequence([base, index, 21]).generate_state(1)[0] % (2**31 - 1))
+
+
+def check_input_task(name: str, folder: Path, manifest: Manifest, task: CipTaskConfig) -> None:
+    """InputError naming input `name` when the stage output `folder` (its `manifest`) was
+    made for another task: another name, or another object (geometry, pose, jitter)."""
+    theirs = manifest.config.get("task")
+    theirs = theirs if isinstance(theirs, dict) else {}
+    if theirs.get("name") != task.name:
+        raise InputError(
+            f"{name}: {folder} holds task '{theirs.get('name')}', expected '{task.name}'"
+        )
+    try:
+        same = CipObject.model_validate(theirs.get("object")) == task.object
+    except ValueError:
+        same = False
+    if not same:
+        raise InputError(f"{name}: {folder} was made with another task.object than this config's")
+
+
+def read_demonstrations(folder: Path, task: CipTaskConfig) -> Demonstrations:
+    """The transitions of the successful episodes in the cip-demos output `folder` (made
+    for `task`); InputError naming the folder when it holds none."""
+    manifest = read_manifest(folder, expected_stage="cip-demos")
+    check_input_task("demos", folder, manifest, task)
+    arrays = read_npz(verify_file(folder, manifest, DEMOS_NPZ), DEMO_ARRAYS)
+    success, episode = arrays["success"].astype(bool), arrays["episode"].astype(np.int64)
+    if len(episode) and (episode.min() < 0 or episode.max() >= len(success)):
+        raise InputError(f"{folder / DEMOS_NPZ}: episode: indices outside 0-{len(success) - 1}")
+    keep = success[episode]
+    if not keep.any():
+        raise InputError(f"demos: {folder} holds no successful demonstration "
+                         f"(0 of {len(success)})")  # fmt: skip
+    return Demonstrations(*(arrays[k][keep] for k in DEMO_ARRAYS[:5]))
+
+
+def policy_record(cfg: TrainCipConfig, chunk: int, state: dict[str, Any]) -> dict[str, Any]:
+    """The `policy.pt` payload of a run from its last checkpoint `state` (`train_run`'s
+    save): the actor pi_c's weights (TD3's `actor.*` without the prefix: they load into
+    `td3_model(...).actor`; no critics, no targets) and plain data naming its task,
+    setting, seed and learner."""
+    setting, index = cfg.run_of(chunk)
+    actor = {key.removeprefix("actor."): value for key, value in state["td3"]["policy"].items()
+             if key.startswith("actor.")}  # fmt: skip
+    return {"task": cfg.task.name, "setting": setting, "seed": index,
+            "td3": cfg.train.td3.model_dump(), "state_dict": actor}  # fmt: skip
+
+
+def run_summary(
+    cfg: TrainCipConfig, rows: list[list[str]]
+) -> tuple[dict[str, Any], dict[str, float | int | str]]:
+    """summary.json and the manifest's stats of a finished train-cip folder, from
+    learning_curve.csv's rows (strings): per setting, the means over its seeds of the
+    last evaluation's best-to-date success (Fig. 7.3's last point) and violation rate."""
+    final: dict[str, dict[str, float]] = {}
+    stats: dict[str, float | int | str] = {"task": cfg.task.name}
+    for setting in cfg.settings:
+        last = [r for r in rows if r[0] == setting and int(r[2]) == cfg.train.episodes]
+        success = float(np.mean([float(r[4]) for r in last]))
+        violations = float(np.mean([float(r[5]) for r in last]))
+        final[setting] = {"success_best": success, "violation_rate": violations}
+        stats[setting] = f"success {success:.2f} (best to date), violations {violations:.2f}"
+    summary = {"task": cfg.task.name, "settings": cfg.settings, "seeds": cfg.seeds,
+               "train": cfg.train.model_dump(exclude={"td3"}), "final": final}  # fmt: skip
+    return summary, stats

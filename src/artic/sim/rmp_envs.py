@@ -211,9 +211,12 @@ class RmpEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
             raise ValueError("grasp_path: not the door task")
         q, path = self.start_q, []
         for angle in np.asarray(angles, dtype=np.float64):
-            q = solve_ik(self.robot, self._grasp_target(float(angle)), q, IKSettings(rounds=20))
-            if q is None:
+            solved = solve_ik(
+                self.robot, self._grasp_target(float(angle)), q, IKSettings(rounds=20)
+            )
+            if solved is None:
                 return None
+            q = solved
             path.append(q)
         return np.array(path)
 
