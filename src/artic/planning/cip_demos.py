@@ -4,16 +4,16 @@
 grasp-candidates folder, and the demonstrations recorded from CIP starts.
 
 Where demonstration k starts: the episode is reset with `demo_seed(seed, k)` (its object
-pose jittered as in training), and the head takes the grasp whose best IK solution
-scores highest (w P, Eq. 7.1), re-solving IK at the episode's pose from its stored
-solutions, best score first (`select_start` under `mv`); when none reaches there, the
-next grasp by score. Not UCB1's grasp: before learning the bandit knows nothing, and
+pose jittered as in training); each grasp's stored solutions are re-solved at that pose,
+best score first (`select_start` under `mv`), and of those starts the expert takes the
+one whose grasp path to its goal keeps every joint farthest from its limits
+(`cip_expert.grasp_path_margin`): the expert holds its grasp rigidly and knows the
+object's kinematics. Not UCB1's grasp: before learning the bandit knows nothing, and
 its first pulls go through the grasps in index order, an order of sampling with no
-meaning. Not a cycle through the grasps either: the expert holds its start's grasp
-rigidly, and from a lower-scored grasp it can fail where the best-scored one succeeds
-(the door's 20-grasp set of seed 0: from the best-scored grasp 4 of 4 demonstrations
-succeeded, from the other 0 of 4; docs/cip.md). The choice is deterministic: the same
-initiation set and seed give the same starts and the same demonstrations.
+meaning. Not the best-scored grasp (w P, Eq. 7.1, at the start only): on the slide and
+the lever it gave 0 of 10 successful demonstrations (the path ran into sigma1, where the
+envelope holds the arm; docs/cip.md). The choice is deterministic: the same initiation
+set and seed give the same starts and the same demonstrations.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from artic.artifacts.formats import read_json
 from artic.artifacts.manifest import read_manifest, verify_file
 from artic.config.schemas import StageConfig
 from artic.learning.cip_train import DEMO_ARRAYS, check_input_task, make_env
-from artic.planning.cip_expert import ExpertConfig, demonstrate
+from artic.planning.cip_expert import ExpertConfig, demonstrate, grasp_path_margin
 from artic.planning.cip_grasps import (
     GraspCandidatesConfig,
     InitiationSet,
@@ -91,17 +91,27 @@ def grasp_order(initiation_set: InitiationSet) -> list[int]:
     return [int(g) for g in np.argsort(-best, kind="stable")]
 
 
-def demo_start(initiation_set: InitiationSet, env: CipEnv, seed: int) -> Start | None:
-    """The start of the demonstration reset with `seed` (module docstring); None when
-    no grasp's IK reaches at that episode's object pose."""
+def demo_start(
+    initiation_set: InitiationSet, env: CipEnv, seed: int, overshoot: float
+) -> Start | None:
+    """The start of the demonstration reset with `seed` (module docstring): of each
+    grasp's best-scored IK solution re-solved at that episode's object pose, the one
+    whose grasp path to `overshoot` x beta_c's threshold keeps every joint farthest from
+    its limits (`grasp_path_margin`: the expert knows the object's kinematics); None
+    when no grasp's IK reaches there."""
     pose = env.draw_pose(seed)
     ik = robot_ik(env.robot, env.task.safety.limit_threshold)
     rng = np.random.default_rng(0)  # unused: the grasp is given
+    best, margin = None, -np.inf
     for grasp in grasp_order(initiation_set):
         start = select_start(initiation_set, "mv", pose, rng, ik, grasp)
-        if start.q is not None:
-            return start
-    return None
+        if start.q is None:
+            continue
+        upto = overshoot * env.task.success
+        m = grasp_path_margin(env, pose, start.q, upto, tool=start.target)
+        if m > margin:
+            best, margin = start, m
+    return best
 
 
 class DemoRecording(NamedTuple):
@@ -125,7 +135,7 @@ def record_demos(cfg: CipDemosConfig, initiation_set: InitiationSet) -> DemoReco
     try:
         for k in range(cfg.demos):
             seed = demo_seed(cfg.seed, k)
-            start = demo_start(initiation_set, env, seed)
+            start = demo_start(initiation_set, env, seed, cfg.expert.overshoot)
             if start is None or start.q is None:
                 episodes.append({"episode": k, "seed": seed, "grasp": -1, "solution": -1,
                                  "steps": 0, "return": 0.0, "success": False})  # fmt: skip

@@ -113,14 +113,18 @@ def demonstrate(env: CipEnv, seed: int, start_q: F64, cfg: ExpertConfig) -> Demo
     return Demonstration(np.array(o), np.array(a), np.array(r), np.array(n), np.array(d), success)
 
 
-def grasp_path_margin(env: CipEnv, pose: F64, q: F64, upto: float, points: int = 8) -> float:
+def grasp_path_margin(
+    env: CipEnv, pose: F64, q: F64, upto: float, points: int = 8, tool: F64 | None = None
+) -> float:
     """The least distance (rad) of any joint to its limits while the arm, started at q
-    (7,) holding the reference handle grasp of the object at `pose` (4, 4), follows
-    that grasp's path to the opening `upto` (IK of `points` poses, warm-started);
-    -inf where IK fails. The expert's choice among start configurations."""
+    (7,) holding the tool pose `tool` (4, 4, world; default the reference handle grasp)
+    on the closed object at `pose` (4, 4), follows that grasp's path to the opening
+    `upto` (IK of `points` poses, warm-started); -inf where IK fails. The expert's
+    choice among start configurations."""
     model = env.object_model(pose)
     link = model.link_index("handle_0")
-    grasp = grasp_from_world_pose(model, link, np.zeros(1), env.handle_grasp(pose), "handle")
+    held = env.handle_grasp(pose) if tool is None else tool
+    grasp = grasp_from_world_pose(model, link, np.zeros(1), held, "handle")
     low, high = env.limits
     margin = np.inf
     for opening in np.linspace(0.0, upto, points):

@@ -68,12 +68,15 @@ from artic.render.noise import SensorNoiseConfig
 from artic.render.scan import FusionConfig, ScanViewConfig, fuse_views, view_poses
 from artic.sim.cip_envs import CipEnv
 from artic.sim.cip_tasks import CipTaskConfig, get_cip_task
+from artic.sim.gripper import GripperConfig
 from artic.sim.robot import N_JOINTS, TOOL_LINK, IKSettings, Robot, point_jacobian, solve_ik
 
 F64 = NDArray[np.float64]
 HeadSetting = Literal["head", "safety", "mv", "cip"]
 """The settings of section 7.3 that start at a grasp (E2E starts at home, no head)."""
 IKFunction = Callable[[F64, F64], F64 | None]
+#: where every artic object's front (and its handles) faces, in the object's frame
+FRONT = np.array([-1.0, 0.0, 0.0])
 """(target world tool pose (4, 4), seed (7,)) -> a joint configuration (7,) or None."""
 
 _SCAN_CAMERA = CameraIntrinsics(fx=300, fy=300, cx=159.5, cy=119.5, width=320, height=240)
@@ -113,6 +116,9 @@ class GraspCandidatesConfig(Strict):
     )
     clearance_m: float = Field(
         0.005, ge=0, description="least distance of the open gripper and arm to the scene, m"
+    )
+    fingertip_clearance: float = Field(
+        0.01, ge=0, description="fingertips this far short of the part's far side, m"
     )
     exploration: float = Field(1.0, ge=0, description="UCB1's exploration constant c")
     score: GraspScoreConfig = Field(default_factory=GraspScoreConfig, description="w P of Eq. 7.1")
@@ -184,10 +190,16 @@ def part_cloud(
 # -- get_grasp_candidates ----------------------------------------------------------------
 
 
-def bar_axis(points: F64) -> F64:
+def bar_axis(points: F64, facing: F64 | None = None) -> F64:
     """(3,) unit principal direction of points (N, 3) (the handle bar's axis), its
-    largest component positive."""
+    largest component positive. With `facing` (3,), the direction the part's mount
+    faces (every artic object's front: -x of its frame): the principal direction across
+    it (the points projected onto the plane it is normal to), so a knob about as deep
+    as it is long still gets the long side of its face."""
     centred = points - points.mean(axis=0)
+    if facing is not None:
+        facing = np.asarray(facing, dtype=np.float64) / np.linalg.norm(facing)
+        centred = centred - np.outer(centred @ facing, facing)
     axis = np.linalg.svd(centred, full_matrices=False)[2][0]
     return np.asarray(axis if axis[np.argmax(np.abs(axis))] > 0 else -axis, np.float64)
 
@@ -207,14 +219,17 @@ def sample_grasps(
     n: int = 100,
     bar_thickness: float = PartsConfig().handle_thickness,
     cfg: GraspCandidatesConfig | None = None,
+    finger_length: float = GripperConfig().finger_length,
 ) -> SampledGrasps:
     """n candidate tool poses in the points' frame (module docstring): at a point drawn
     from points (N, 3) with outward normals (N, 3), approach (z) within
     `cfg.max_approach_deg` of -n, fingers (y) across the bar axis, the tool point half
-    `bar_thickness` (m) behind the point. InputError if no point's normal allows the
-    approach, or if n grasps are not found in n x `cfg.attempts` draws."""
+    `bar_thickness` (m) behind the point, or less where the part is shallower along the
+    approach than the fingers (`finger_length` m) reach past it with
+    `cfg.fingertip_clearance` to spare (a knob). InputError if no point's normal allows
+    the approach, or if n grasps are not found in n x `cfg.attempts` draws."""
     cfg = cfg or GraspCandidatesConfig()
-    axis = bar_axis(points)
+    axis = bar_axis(points, FRONT)
     inward = -(normals - np.outer(normals @ axis, axis))
     length = np.linalg.norm(inward, axis=1)
     min_cosine = math.cos(math.radians(cfg.max_approach_deg))
@@ -240,7 +255,9 @@ def sample_grasps(
             continue
         pose = np.eye(4)
         pose[:3, 0], pose[:3, 1], pose[:3, 2] = np.cross(closing, approach), closing, approach
-        pose[:3, 3] = points[i] + 0.5 * bar_thickness * into
+        depth = float(np.max((points - points[i]) @ into))  # the part behind the point
+        reach = depth - cfg.fingertip_clearance - finger_length / 2
+        pose[:3, 3] = points[i] + max(0.0, min(0.5 * bar_thickness, reach)) * into
         grasps.append(pose)
         source.append(i)
     if len(grasps) < n:
@@ -494,7 +511,8 @@ def _filter(
     scene = 0  # any seed: the object stands at its nominal pose
     pose = env.draw_pose(scene)
     cloud = part_cloud(env.object_model(pose), rng, cfg.scan)
-    sampled = sample_grasps(cloud.points, cloud.normals, rng, n, env.parts.handle_thickness, cfg)
+    sampled = sample_grasps(cloud.points, cloud.normals, rng, n, env.parts.handle_thickness, cfg,
+                            env.task.gripper.finger_length)  # fmt: skip
     env.reset(seed=scene)
     low, high = env.limits
     seeds = ik_seeds(np.asarray(env.task.robot.start_q), low, high, rng, cfg.ik_seeds)
