@@ -142,8 +142,9 @@ def record_demos(cfg: CipDemosConfig, initiation_set: InitiationSet) -> DemoReco
                 continue
             demo = demonstrate(env, seed, start.q, cfg.expert)
             steps = len(demo.actions)
-            parts = (demo.obs, demo.actions, demo.rewards, demo.next_obs, demo.dones)
-            for column, part in zip(columns, (*parts, np.full(steps, k)), strict=True):
+            parts: list[NDArray[Any]] = [demo.obs, demo.actions, demo.rewards, demo.next_obs,
+                                         demo.dones, np.full(steps, k)]  # fmt: skip
+            for column, part in zip(columns, parts, strict=True):
                 column.append(part)
             episodes.append({"episode": k, "seed": seed, "grasp": start.grasp,
                              "solution": start.solution, "steps": steps,
