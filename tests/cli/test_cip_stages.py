@@ -128,6 +128,8 @@ def test_train_cip_writes_the_curve_policies_and_summary(chain):
                             weights_only=True)  # fmt: skip
         assert (record["task"], record["setting"], record["seed"]) == ("drawer", setting, 0)
         assert record["state_dict"] and all(k.startswith("mu.") for k in record["state_dict"])
+        home = setting in ("e2e", "e2e_bc")  # the head's state: UCB1's counts over I_c
+        assert record["starts"] == {} if home else sum(record["starts"]["bandit"]["pulls"]) > 0
     summary = json.loads((chain.policy / "summary.json").read_text())
     assert set(summary["final"]) == set(SETTING_NAMES)
     manifest = read_manifest(chain.policy)

@@ -405,13 +405,16 @@ def read_demonstrations(folder: Path, task: CipTaskConfig) -> Demonstrations:
 def policy_record(cfg: TrainCipConfig, chunk: int, state: dict[str, Any]) -> dict[str, Any]:
     """The `policy.pt` payload of a run from its last checkpoint `state` (`train_run`'s
     save): the actor pi_c's weights (TD3's `actor.*` without the prefix: they load into
-    `td3_model(...).actor`; no critics, no targets) and plain data naming its task,
+    `td3_model(...).actor`; no critics, no targets), the head's learnt state (`starts`:
+    the UCB1 counts over I_c under the grasp settings, which `compose` reads to take the
+    best grasp; {} for the settings that start at home) and plain data naming its task,
     setting, seed and learner."""
     setting, index = cfg.run_of(chunk)
     actor = {key.removeprefix("actor."): value for key, value in state["td3"]["policy"].items()
              if key.startswith("actor.")}  # fmt: skip
     return {"task": cfg.task.name, "setting": setting, "seed": index,
-            "td3": cfg.train.td3.model_dump(), "state_dict": actor}  # fmt: skip
+            "td3": cfg.train.td3.model_dump(), "starts": state["starts"],
+            "state_dict": actor}  # fmt: skip
 
 
 def run_summary(
