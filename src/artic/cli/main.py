@@ -68,6 +68,31 @@ def _with_task(overrides: list[str] | None, task: str | None) -> list[str]:
     return [*(overrides or []), *([f"task={task}"] if task else [])]
 
 
+def _with_options(overrides: list[str] | None, options: dict[str, str]) -> list[str]:
+    """The stage's `options` (`Stage.options`) among the overrides turned into overrides:
+    `--NAME A,B` of a list field into `NAME=[A,B]`, `--NAME` of a flag into `NAME=true`;
+    any other `--` word is bad input."""
+    from artic.errors import InputError
+
+    tokens, out = list(overrides or []), []
+    while tokens:
+        token = tokens.pop(0)
+        name = token[2:].replace("-", "_")
+        if not token.startswith("--"):
+            out.append(token)
+        elif options.get(name) == "flag":
+            out.append(f"{name}=true")
+        elif options.get(name) == "list" and tokens and not tokens[0].startswith("--"):
+            out.append(f"{name}=[{tokens.pop(0)}]")
+        elif options.get(name) == "list":
+            raise InputError(f"{token}: expects a value, e.g. {token} a,b")
+        else:
+            known = ", ".join(f"--{o.replace('_', '-')}" for o in options) or "none"
+            raise InputError(f"no such option: {token} (this command's options: {known}; "
+                             f"config fields as KEY=VALUE)")  # fmt: skip
+    return out
+
+
 def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, force: bool) -> None:
     """Run the stage behind `artic COMMAND OVERRIDES` (a stage name, or an alias)."""
     from artic.cli.stage_runner import resolved_config, run_stage
@@ -75,6 +100,7 @@ def run_stage_command(command: str, overrides: list[str] | None, cfg: bool, forc
     from artic.config.compose import validate
 
     entry = resolve(command, overrides)
+    overrides = _with_options(overrides, entry.options)
     stage = load_stage(entry.name)
     if cfg:
         import yaml
@@ -118,13 +144,22 @@ evaluate_app = typer.Typer(
 GROUPS: dict[str, typer.Typer] = {"evaluate": evaluate_app}
 
 
+def _options_help(options: dict[str, str]) -> str:
+    """The help's line on a stage's `options` (read by `_with_options`)."""
+    said = [f"--{name.replace('_', '-')} A,B (= {name}=[A,B])" if kind == "list"
+            else f"--{name.replace('_', '-')} (= {name}=true)"
+            for name, kind in options.items()]  # fmt: skip
+    return f"\n\nOptions: {'; '.join(said)}." if said else ""
+
+
 def _add_stage_commands() -> None:
     for entry in stage_entries().values():
         *group, word = entry.command
         if len(group) > 1 or (group and group[0] not in GROUPS):
             raise RegistryError(f"{entry.module}: no command group {' '.join(group)}")
         target = GROUPS[group[0]] if group else app
-        target.command(word, help=entry.help, context_settings=_EXTRA)(_stage_command(entry))
+        target.command(word, help=entry.help + _options_help(entry.options),
+                       context_settings=_EXTRA)(_stage_command(entry))  # fmt: skip
 
 
 _add_stage_commands()

@@ -3,7 +3,8 @@ appears on the command line.
 
 A stage registers itself: a module of `artic.cli` that defines `STAGE = Stage(...)`
 (`cli/stage.Stage`) is a stage module, and its declaration says everything the
-command line needs (`name`, `help`, `command`, `task_option`, `preset`, `alias`).
+command line needs (`name`, `help`, `command`, `task_option`, `preset`, `options`,
+`alias`).
 Nothing else lists the stages: `cli/main.py` generates one command per entry, `artic
 pipeline` resolves `cmd:` here, and the runner finds here the stage that wrote an input.
 
@@ -45,6 +46,7 @@ _FIELDS: dict[str, Any] = {
     "command": "",
     "task_option": False,
     "preset": (),
+    "options": {},
     "alias": "",
     "inputs": {},
 }
@@ -65,6 +67,8 @@ class StageEntry:
     command: tuple[str, ...] = ()
     task_option: bool = False
     preset: tuple[str, ...] = ()
+    #: config fields also given as options: {"skills": "list", "perceive": "flag"}
+    options: dict[str, str] = field(default_factory=dict, hash=False)
     #: another command line that runs this stage: ("render-depth", "render=scan")
     alias: tuple[str, ...] = ()
     inputs: dict[str, str] = field(default_factory=dict, hash=False)
@@ -140,6 +144,7 @@ def read_declaration(module: str, source: str) -> StageEntry | None:
         command=tuple((values["command"] or name).split()),
         task_option=bool(values["task_option"]),
         preset=tuple(values["preset"]),
+        options=dict(values["options"]),
         alias=tuple(values["alias"].split()),
         inputs=dict(values["inputs"]),
     )

@@ -38,7 +38,10 @@ class Stage(Generic[C]):
     command's help, first paragraph listed by `artic --help`), `command` (the words
     after `artic`, default the name; "evaluate mdn" is a subcommand of `evaluate`),
     `task_option` (`--task NAME`, shorthand for `task=NAME`), `preset` (overrides the
-    stage always composes with, e.g. render-scan's `render=scan`) and `alias` (another
+    stage always composes with, e.g. render-scan's `render=scan`), `options` (config
+    fields also given as options: {"skills": "list"} reads `--skills a,b` as
+    `skills=[a,b]`, {"perceive": "flag"} reads `--perceive` as `perceive=true`) and
+    `alias` (another
     command line that runs this stage, with a log line saying so: "render-depth
     render=scan"). The registry reads these from the source without importing the
     module, so they must be literals. `one_chunk`: the plan always has one chunk, so the
@@ -56,6 +59,7 @@ class Stage(Generic[C]):
     command: str = ""
     task_option: bool = False
     preset: tuple[str, ...] = ()
+    options: dict[str, str] = field(default_factory=dict)
     alias: str = ""
     #: the stage's work is always one chunk (a training run, one evaluation): no shards
     one_chunk: bool = False

@@ -63,3 +63,15 @@ class JointTracker:
 
     def __call__(self, obs: F64, step: int) -> F64:
         return self.action(step, np.asarray(obs, dtype=np.float64)[: self.n_joints])
+
+
+def computed_torque(
+    mass: F64, bias: F64, q: F64, qd: F64, q_ref: F64, qd_ref: F64, k_p: float, k_d: float
+) -> F64:
+    """Joint torques (J,) of the computed-torque law for a torque-controlled arm (the
+    Chapter 7 head and tail): tau = M (k_p (q_ref - q) + k_d (qd_ref - qd)) + bias, with
+    M (J, J) the mass matrix and bias (J,) = C q' + g at the measured state, k_p in 1/s^2
+    and k_d in 1/s (critically damped: k_d = 2 sqrt(k_p)). Each joint's error then obeys
+    e'' + k_d e' + k_p e = 0 when the model is exact."""
+    error = k_p * (np.asarray(q_ref) - q) + k_d * (np.asarray(qd_ref) - qd)
+    return np.asarray(mass @ error + bias, dtype=np.float64)

@@ -299,11 +299,14 @@ def reachable_solutions(
     return np.array(kept, dtype=np.float64).reshape(-1, N_JOINTS)
 
 
-def in_collision(env: CipEnv, q: F64, clearance: float = 0.005) -> bool:
+def in_collision(
+    env: CipEnv, q: F64, clearance: float = 0.005, obstacles: tuple[int, ...] | None = None
+) -> bool:
     """Whether the arm at q (7,) with the gripper open (kinematic reset of both) comes
-    within `clearance` m of the object or the ground, or touches itself: non-adjacent
-    arm links, the gripper and the arm below the flange link. The base and link 0 stand
-    on the ground and are not checked against it. Leaves the arm at q."""
+    within `clearance` m of the object (or of each body of `obstacles`) or the ground,
+    or touches itself: non-adjacent arm links, the gripper and the arm below the flange
+    link. The base and link 0 stand on the ground and are not checked against it.
+    Leaves the arm at q."""
     client, body, gripper = env.client, env.robot.body, env.gripper
     env.robot.set_state(q)
     gripper.follow()
@@ -315,7 +318,8 @@ def in_collision(env: CipEnv, q: F64, clearance: float = 0.005) -> bool:
         return True
     if any(closest(gripper.body, body, 0.0, linkIndexB=j) for j in range(-1, TOOL_LINK)):
         return True
-    if any(closest(part, env.object, clearance) for part in (body, gripper.body)):
+    objects = (env.object,) if obstacles is None else obstacles
+    if any(closest(part, o, clearance) for part in (body, gripper.body) for o in objects):
         return True
     if closest(gripper.body, env.ground, clearance):
         return True

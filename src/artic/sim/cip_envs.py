@@ -73,6 +73,32 @@ def yaw_pose(x: float, y: float, z: float, yaw: float) -> F64:
     return pose
 
 
+def draw_object_pose(task: CipTaskConfig, rng: np.random.Generator) -> F64:
+    """(4, 4) a pose of `task`'s object: its nominal one jittered (+-`jitter_xy` in x and
+    y, +-`jitter_yaw` about z), drawn from `rng`."""
+    o = task.object
+    dx, dy = rng.uniform(-o.jitter_xy, o.jitter_xy, size=2)
+    dyaw = rng.uniform(-o.jitter_yaw, o.jitter_yaw)
+    return yaw_pose(o.x + dx, o.y + dy, o.z, float(dyaw))
+
+
+def task_spec(task: CipTaskConfig, pose: F64) -> ObjectSpec:
+    """The `artic.objects` spec of `task`'s object with its base at `pose` (4, 4; z up)."""
+    o = task.object
+    yaw = float(np.arctan2(pose[1, 0], pose[0, 0]))
+    return ObjectSpec(
+        category=o.category, index=0, dof=1, joint_type=o.joint_type, depth=o.depth,
+        width=o.width, height=o.height, chirality=o.chirality,
+        pose=Pose(x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3]), yaw=yaw),
+        joint_limits=((0.0, o.joint_limit),), parts=o.parts,
+    )  # fmt: skip
+
+
+def task_object(task: CipTaskConfig, pose: F64) -> ArticulatedObject:
+    """`task`'s object (`artic.objects`, closed) with its base at `pose` (4, 4; z up)."""
+    return build(task_spec(task, pose))
+
+
 class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     """The contact phase of one Chapter 7 task (see the module docstring)."""
 
@@ -100,16 +126,17 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         self.rest_q = np.asarray(self._robot_cfg.start_q, dtype=np.float64)
         self._steps = self._no_contact = 0
         self._phi = 0.0
+        #: subtracted from q in the observation: compose turns a skill's scene about the
+        #: base's vertical axis (joint 1's), and joint 1 is then read from the object's
+        #: bearing (zero here: the training scene)
+        self.joint_offset = np.zeros(N_JOINTS)
         self.observation_space = gym.spaces.Box(-OBS_BOUND, OBS_BOUND, (OBS_SIZE,), np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (13,), np.float32)
 
     # -- the scene ---------------------------------------------------------------------
 
     def _draw(self, rng: np.random.Generator) -> F64:
-        o = self.task.object
-        dx, dy = rng.uniform(-o.jitter_xy, o.jitter_xy, size=2)
-        dyaw = rng.uniform(-o.jitter_yaw, o.jitter_yaw)
-        return yaw_pose(o.x + dx, o.y + dy, o.z, float(dyaw))
+        return draw_object_pose(self.task, rng)
 
     def draw_pose(self, seed: int) -> F64:
         """(4, 4) the object pose `reset(seed=seed)` will use."""
@@ -117,16 +144,7 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
 
     def object_model(self, pose: F64 | None = None) -> ArticulatedObject:
         """The task's object (`artic.objects`) at `pose` (default: this episode's)."""
-        o = self.task.object
-        pose = self.object_pose if pose is None else pose
-        yaw = float(np.arctan2(pose[1, 0], pose[0, 0]))
-        spec = ObjectSpec(
-            category=o.category, index=0, dof=1, joint_type=o.joint_type, depth=o.depth,
-            width=o.width, height=o.height, chirality=o.chirality,
-            pose=Pose(x=float(pose[0, 3]), y=float(pose[1, 3]), z=float(pose[2, 3]), yaw=yaw),
-            joint_limits=((0.0, o.joint_limit),), parts=self.parts,
-        )  # fmt: skip
-        return build(spec)
+        return task_object(self.task, self.object_pose if pose is None else pose)
 
     @property
     def parts(self) -> PartsConfig:
@@ -222,6 +240,16 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         self._phi = self._potential()
         return self._observation(), self._info(False, False, False, {})
 
+    def grasp_here(self) -> NDArray[np.float32]:
+        """Gamma where the arm stands (a tracked head's end): the posture target set
+        there, the fingers closed as at a reset with `grasp`; the episode's counters
+        restarted. Returns the observation."""
+        self.rest_q = self._joints()[0]
+        self._close_on_grasp()
+        self._steps = self._no_contact = 0
+        self._phi = self._potential()
+        return self._observation()
+
     def _close_on_grasp(self) -> None:
         """Gamma at the head's end: close the fingers while VICES holds the tool still."""
         state = self.arm_state()
@@ -305,7 +333,7 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         quaternion = Rotation.from_matrix(rotation).as_quat()
         if quaternion[3] < 0:
             quaternion = -quaternion
-        parts = [np.array(self.object_joint()), q, qd, tool, quaternion,
+        parts = [np.array(self.object_joint()), q - self.joint_offset, qd, tool, quaternion,
                  np.array([self.gripper.width()]), self.touching()]  # fmt: skip
         obs = np.concatenate(parts)
         return np.clip(obs, -OBS_BOUND, OBS_BOUND).astype(np.float32)

@@ -1,0 +1,261 @@
+"""`artic compose` (thesis section 7.4; issue 21 part 8): its config, the skills read back
+from train-cip and grasp-candidates folders, and one trial with true and perceived
+models. The scene and the sequence are `artic.planning.compose`.
+
+A trial draws the scene (`planning.compose.layout`, from (seed, trial)) and runs the
+sequence once with the true models and, with `perceive`, once more in the same scene with
+the models the Chapter 3 network sees (`perceived_placement`); each run is one row per
+skill of `TRIAL_COLUMNS`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field, field_validator, model_validator
+
+from artic.artifacts.manifest import read_stage_config, verify_file
+from artic.config.schemas import StageConfig, Strict
+from artic.errors import InputError
+from artic.kinematics import Estimator
+from artic.learning.cip_train import SETTINGS, Setting, TrainCipConfig
+from artic.planning.compose import (
+    ComposeEnv,
+    HeadTailConfig,
+    Placement,
+    Skill,
+    layout,
+    perceived_placement,
+    rot_about_base,
+    run_sequence,
+)
+from artic.render.noise import SensorNoiseConfig
+from artic.sim.cip_tasks import CipTaskName
+
+TASKS: tuple[CipTaskName, ...] = ("door", "drawer", "slide", "lever")
+ModelsUsed = Literal["true", "perceived"]
+TRIAL_COLUMNS = ("trial", "models", "skill", "task", "grasp", "plan_s", "tracking_error_rad",
+                 "steps", "success", "end")  # fmt: skip
+COMPOSE_COLUMNS = ("models", "trials", "first_skill_success", "sequence_success")
+
+
+class MotionConfig(Strict):
+    """Heads and tails (`planning.compose.HeadTailConfig`)."""
+
+    speed: float = Field(1.0, gt=0, description="largest joint speed of a tracked plan, rad/s")
+    k_p: float = Field(400.0, gt=0, description="computed-torque stiffness, 1/s^2 (k_d 2 sqrt)")
+    settle_s: float = Field(0.3, ge=0, description="hold at a plan's end, s")
+    plan_time_s: float = Field(
+        60.0, gt=0, description="RRTConnect's wall-time budget per head, s (a safety net)"
+    )
+    plan_checks: int = Field(
+        100_000,
+        ge=1,
+        description="RRTConnect stops after this many validity checks: a "
+        "machine-independent limit, so a run gives the same plans on any CPU",
+    )
+    resolution: float = Field(0.02, gt=0, description="motion check spacing, rad")
+    clearance_m: float = Field(0.005, ge=0, description="least distance to the objects, m")
+    grasps_tried: int = Field(3, ge=1, description="best grasps tried for a reachable one")
+    release_s: float = Field(0.5, gt=0, description="the hand opening, s")
+    retreat_m: float = Field(0.1, ge=0, description="tail: retreat along the approach, m")
+    retreat_s: float = Field(1.0, gt=0, description="tail: the retreat's duration, s")
+
+    def constants(self) -> HeadTailConfig:
+        return HeadTailConfig(**self.model_dump())
+
+
+class PerceptionConfig(Strict):
+    """The Chapter 3 network's view of each object (`perceive`)."""
+
+    mdn: dict[str, str | None] = Field(
+        default_factory=dict,
+        description="per category (cabinet, drawer): a model.pt; missing or null: the "
+        "model store's choice, as `artic predict` makes it",
+    )
+    refine: bool = Field(True, description="the geometric refinement of `artic predict`")
+    estimator: Estimator = Field("most-likely", description="the MDN's estimator")
+    noise: SensorNoiseConfig = Field(
+        default_factory=SensorNoiseConfig, description="the depth sensor model of the view"
+    )
+
+
+class ComposeConfig(StageConfig):
+    """The config of `artic compose` (conf/compose/config.yaml)."""
+
+    skills: list[CipTaskName] = Field(min_length=1, description="tasks, in the order chained")
+    bearings_deg: list[float] = Field(
+        description="each skill's object turned about the base by this, deg (its side)"
+    )
+    setting: Setting = Field("cip_bc", description="whose policies (a grasp setting)")
+    policy_seed: int = Field(0, ge=0, description="which seed's policy of the setting")
+    policies: dict[str, str | None] = Field(description="train-cip output folder per task")
+    grasps: dict[str, str | None] = Field(description="grasp-candidates output folder per task")
+    trials: int = Field(50, ge=1, description="sequences (issue 21: 50)")
+    perceive: bool = Field(False, description="also run every trial on perceived models")
+    perception: PerceptionConfig = Field(default_factory=PerceptionConfig)
+    motion: MotionConfig = Field(default_factory=MotionConfig)
+
+    @field_validator("setting")
+    @classmethod
+    def _grasp_setting(cls, value: Setting) -> Setting:
+        if SETTINGS[value].grasp == "home":
+            grasping = ", ".join(s for s, v in SETTINGS.items() if v.grasp != "home")
+            raise ValueError(f"setting {value} starts at home; compose chains the settings "
+                             f"that start at a grasp ({grasping})")  # fmt: skip
+        return value
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ComposeConfig:
+        if len(set(self.skills)) != len(self.skills):
+            raise ValueError("skills: a task appears twice")
+        if len(self.bearings_deg) != len(self.skills):
+            raise ValueError(f"bearings_deg: {len(self.bearings_deg)} values for "
+                             f"{len(self.skills)} skills")  # fmt: skip
+        for field in ("policies", "grasps"):
+            for task in self.skills:
+                if getattr(self, field).get(task) is None:
+                    raise ValueError(f"{field}.{task}: no folder for skill {task}")
+        return self
+
+    def input_paths(self) -> dict[str, Path]:
+        """`<task>` (train-cip) and `<task>_grasps` (grasp-candidates) of each skill."""
+        paths: dict[str, Path] = {}
+        for task in self.skills:
+            paths[task] = Path(str(self.policies[task]))
+            paths[f"{task}_grasps"] = Path(str(self.grasps[task]))
+        return paths
+
+
+def policy_path(cfg: ComposeConfig) -> str:
+    """The policy file of `cfg.setting` and `cfg.policy_seed` in a train-cip folder."""
+    return f"policies/{cfg.setting}/seed_{cfg.policy_seed:03d}/policy.pt"
+
+
+class SkillFiles:
+    """A skill's files checked: the train-cip run (its task and the policy's file, hashed)
+    and the initiation set whose grasps its bandit counted."""
+
+    def __init__(self, cfg: ComposeConfig, task: str, inputs: dict[str, Path]) -> None:
+        from artic.planning.cip_demos import read_initiation_set
+
+        folder = inputs[task]
+        run, manifest = read_stage_config(folder, "train-cip", TrainCipConfig)
+        if run.task.name != task:
+            raise InputError(f"policies.{task}: {folder} holds task '{run.task.name}'")
+        if cfg.setting not in run.settings or cfg.policy_seed >= run.seeds:
+            raise InputError(f"policies.{task}: {folder} has no policy of setting "
+                             f"{cfg.setting}, seed {cfg.policy_seed}")  # fmt: skip
+        self.task, self.run = run.task, run
+        self.policy = verify_file(folder, manifest, policy_path(cfg))
+        #: the policy's sha256 as its train-cip manifest lists it (the file checked equal)
+        self.sha256 = manifest.outputs[policy_path(cfg)].sha256
+        self.initiation_set = read_initiation_set(inputs[f"{task}_grasps"], run.task)
+
+    def load(self, env: ComposeEnv) -> Skill:
+        """The skill: the actor pi_c (TD3's, deterministic) and the initiation set with the
+        run's bandit; InputError naming the policy file when it holds no bandit or one of
+        another initiation set."""
+        import torch
+
+        from artic.learning.bandits import UCB1
+        from artic.learning.td3_bc import td3_model
+
+        record = torch.load(self.policy, weights_only=True)
+        starts = record.get("starts") or {}
+        if "bandit" not in starts:
+            raise InputError(f"{self.policy}: no head state (made by an older train-cip: "
+                             f"train it again)")  # fmt: skip
+        bandit = UCB1.from_dict(starts["bandit"], f"{self.policy}: starts.bandit")
+        if bandit.n_arms != len(self.initiation_set.grasps):
+            raise InputError(f"{self.policy}: its bandit has {bandit.n_arms} grasps, the "
+                             f"initiation set {len(self.initiation_set.grasps)}")  # fmt: skip
+        torch.set_num_threads(1)
+        model = td3_model(self.run.train.td3, env, 0)
+        model.actor.load_state_dict(record["state_dict"])
+        model.actor.set_training_mode(False)
+
+        def actor(obs: Any) -> Any:
+            return model.predict(obs, deterministic=True)[0]
+
+        self.initiation_set.bandit = bandit
+        return Skill(self.task, actor, self.initiation_set)
+
+
+def trial_seed(seed: int, trial: int) -> int:
+    return int(np.random.SeedSequence([seed, trial, 7]).generate_state(1)[0] % (2**31 - 1))
+
+
+def run_trial(cfg: ComposeConfig, inputs: dict[str, Path], trial: int) -> list[list[Any]]:
+    """Trial `trial`: the scene from (seed, trial), the sequence with the true models and,
+    with `perceive`, with the perceived ones; rows of `TRIAL_COLUMNS`."""
+    files = [SkillFiles(cfg, task, inputs) for task in cfg.skills]
+    tasks = [f.task for f in files]
+    from artic.planning.compose import check_compatible
+
+    check_compatible(tasks)
+    bearings = [float(np.radians(b)) for b in cfg.bearings_deg]
+    seed = trial_seed(cfg.seed, trial)
+    true = layout(tasks, bearings, np.random.default_rng(seed))
+    runs: list[tuple[ModelsUsed, list[Placement]]] = [("true", true)]
+    if cfg.perceive:
+        runs.append(("perceived", _perceived(cfg, true, bearings, seed)))
+    setting = SETTINGS[cfg.setting]
+    rows: list[list[Any]] = []
+    for models, known in runs:
+        sim = ComposeEnv(true, setting.safety, setting.contact_termination)
+        plan_env = ComposeEnv(known, setting.safety, setting.contact_termination)
+        try:
+            skills = [f.load(sim) for f in files]
+            outcomes = run_sequence(skills, sim, plan_env, [p.frame for p in known],
+                                    cfg.motion.constants(), seed)  # fmt: skip
+        finally:
+            sim.close()
+            plan_env.close()
+        for k, o in enumerate(outcomes):
+            rows.append([trial, models, k, o.task, o.grasp, round(o.plan_s, 3),
+                         round(o.tracking_error, 6), o.steps, int(o.success), o.end])  # fmt: skip
+    return rows
+
+
+def _perceived(
+    cfg: ComposeConfig, true: list[Placement], bearings: list[float], seed: int
+) -> list[Placement]:
+    from artic.artifacts.model_store import choose_model
+    from artic.kinematics.predict import Predictor
+    from artic.planning.models import ModelConfig
+    from artic.sim.cip_envs import yaw_pose
+
+    view = ModelConfig(source="predicted", refine=cfg.perception.refine,
+                       estimator=cfg.perception.estimator, noise=cfg.perception.noise)  # fmt: skip
+    known = []
+    for k, (placement, angle) in enumerate(zip(true, bearings, strict=True)):
+        category = placement.task.object.category
+        given = cfg.perception.mdn.get(category)
+        choice = choose_model("mdn", category, Path(given) if given else None,
+                              f"perception.mdn.{category}",
+                              root=Path(cfg.artifacts_root) / "models")  # fmt: skip
+        predictor = Predictor.load(choice.path, category)
+        o = placement.task.object
+        nominal = rot_about_base(angle) @ yaw_pose(o.x, o.y, o.z, 0.0)
+        seen, _ = perceived_placement(placement, nominal, predictor, view, seed * 31 + k)
+        known.append(seen)
+    return known
+
+
+def compose_rows(rows: list[list[str]], skills: int) -> list[list[Any]]:
+    """compose.csv's rows from the trials' rows (strings): per models used, trials,
+    the first skill's success rate and the whole sequence's."""
+    out: list[list[Any]] = []
+    for models in ("true", "perceived"):
+        mine = [r for r in rows if r[1] == models]
+        if not mine:
+            continue
+        trials = sorted({int(r[0]) for r in mine})
+        first = [int(r[8]) for r in mine if int(r[2]) == 0]
+        whole = [all(int(r[8]) for r in mine if int(r[0]) == t) for t in trials]
+        out.append([models, len(trials), round(float(np.mean(first)), 4),
+                    round(float(np.mean(whole)), 4)])  # fmt: skip
+    return out
