@@ -15,7 +15,7 @@ from test_render_scan import SMALL as RENDER_SCAN_SMALL
 
 import artic.cli
 from artic.artifacts.manifest import read_manifest
-from artic.cli.main import app
+from artic.cli.main import _options_help, app
 from artic.cli.registry import RegistryError, read_declaration, resolve, stage_entries
 from artic.cli.stage_runner import Stage
 from cli_runner import run_cli
@@ -41,6 +41,7 @@ def test_the_registry_reads_what_the_stage_modules_define():
         assert entry.task_option == stage.task_option
         assert entry.preset == stage.preset
         assert entry.alias == tuple(stage.alias.split())
+        assert entry.options == stage.options
         assert entry.inputs == stage.inputs
         for upstream in stage.inputs.values():
             assert upstream in entries, f"{name} reads an output of unknown stage {upstream}"
@@ -54,7 +55,7 @@ def test_every_registered_stage_has_its_command():
         for word in entry.command:
             cmd = cmd.get_command(ctx, word)  # type: ignore[attr-defined]
             assert cmd is not None, f"no command artic {' '.join(entry.command)}"
-        assert cmd.help == inspect.cleandoc(entry.help)
+        assert cmd.help == inspect.cleandoc(entry.help) + _options_help(entry.options)
         options = {o for p in cmd.params for o in getattr(p, "opts", [])}
         assert {"--cfg", "--force"} <= options
         assert ("--task" in options) == entry.task_option, entry.name

@@ -1,14 +1,16 @@
 """`artic compose`: learnt CIPs chained by planning, with no further learning (thesis section
 7.4, issue 21 part 8). The config, the skills read back and a trial are
-`artic.learning.cip_compose`; the scene and the sequence `artic.planning.compose`.
+`artic.planning.cip_compose`; the scene and the sequence `artic.planning.compose`.
 
 One chunk per trial (resumable). Outputs: `trials.csv` (`TRIAL_COLUMNS`: one row per
-trial, models used and skill: the grasp, planning time, tracking error, actions, success
-and how pi_c ended), `compose.csv` (models, trials, first_skill_success,
+trial, models used and skill: the grasp, the plan's validity checks, tracking error,
+actions, success and how pi_c ended), `compose.csv` (models, trials, first_skill_success,
 sequence_success; models `true`, and `perceived` with --perceive) and `summary.json`
-(the skills' policy files, their sha256 as their train-cip manifests list them, and
-`unchanged`: the file's sha256 computed again when the stage ends equals it; composing
-learns nothing, and every trial checks the files before it loads them).
+(per models and skill: success, how pi_c ended, the median handle and yaw errors of
+the robot's models; the skills' policy files, their sha256 as their train-cip
+manifests list them, and `unchanged`: the file's sha256 computed again when the stage
+ends equals it; composing learns nothing, and every trial checks the files before it
+loads them).
 """
 
 from __future__ import annotations
@@ -19,14 +21,16 @@ from artic.artifacts.chunk_parts import take_csv_rows
 from artic.artifacts.formats import write_csv, write_json
 from artic.artifacts.hashing import sha256_file
 from artic.cli.stage_runner import Plan, Stage
-from artic.learning.cip_compose import (
+from artic.planning.cip_compose import (
     COMPOSE_COLUMNS,
     TRIAL_COLUMNS,
     ComposeConfig,
     SkillFiles,
     compose_rows,
+    per_skill,
     run_trial,
 )
+from artic.planning.compose import check_compatible
 
 #: each skill's train-cip folder (`<task>`) and the grasp-candidates folder of its grasps
 INPUTS = {"door": "train-cip", "drawer": "train-cip", "slide": "train-cip", "lever": "train-cip",
@@ -39,8 +43,8 @@ def _trial_file(trial: int) -> str:
 
 
 def _plan(cfg: ComposeConfig, inputs: dict[str, Path]) -> Plan:
-    for task in cfg.skills:  # bad input before any trial
-        SkillFiles(cfg, task, inputs)
+    files = [SkillFiles(cfg, task, inputs) for task in cfg.skills]  # bad input before a trial
+    check_compatible([f.task for f in files])
     return Plan([1] * cfg.trials, "trials")
 
 
@@ -57,7 +61,7 @@ def _finalize(
     rows = take_csv_rows(work / _trial_file(t) for t in range(cfg.trials))
     (work / "trials").rmdir()
     write_csv(work / "trials.csv", TRIAL_COLUMNS, rows)
-    table = compose_rows(rows, len(cfg.skills))
+    table = compose_rows(rows)
     write_csv(work / "compose.csv", COMPOSE_COLUMNS, table)
     files = {task: SkillFiles(cfg, task, inputs) for task in cfg.skills}
     policies = {task: {"file": str(f.policy), "sha256": f.sha256,
@@ -65,7 +69,8 @@ def _finalize(
                 for task, f in files.items()}  # fmt: skip
     write_json(work / "summary.json", {"skills": cfg.skills, "setting": cfg.setting,
                "trials": cfg.trials, "policies": policies,
-               "compose": [dict(zip(COMPOSE_COLUMNS, r, strict=True)) for r in table]})  # fmt: skip
+               "compose": [dict(zip(COMPOSE_COLUMNS, r, strict=True)) for r in table],
+               "per_skill": per_skill(rows)})  # fmt: skip
     return {f"{r[0]} models": f"first skill {r[2]:.2f}, sequence {r[3]:.2f} of {r[1]} trials"
             for r in table}  # fmt: skip
 

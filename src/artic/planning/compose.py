@@ -107,6 +107,17 @@ def anchored_frame(task: CipTaskConfig, model: ArticulatedObject) -> F64:
     return handle_frame(model) @ np.linalg.inv(handle_frame(task_object(task, np.eye(4))))
 
 
+def frame_errors(true: Placement, known: Placement) -> tuple[float, float]:
+    """How far the robot's knowledge `known` of an object is from `true`: the handle's
+    position error (closed, cm) and the object frame's yaw error (deg)."""
+    handle = float(
+        np.linalg.norm(handle_frame(known.model)[:3, 3] - handle_frame(true.model)[:3, 3])
+    )
+    relative = np.linalg.inv(true.frame) @ known.frame
+    yaw = float(np.degrees(abs(np.arctan2(relative[1, 0], relative[0, 0]))))
+    return 100.0 * handle, yaw
+
+
 def perceived_placement(
     true: Placement,
     nominal: F64,
@@ -287,7 +298,7 @@ class HeadTailConfig(NamedTuple):
     plan_time_s: float = 60.0
     plan_checks: int = 100_000
     resolution: float = 0.02
-    clearance_m: float = 0.005
+    clearance_m: float = 0.002
     grasps_tried: int = 3
     release_s: float = 0.5
     retreat_m: float = 0.1
@@ -296,12 +307,13 @@ class HeadTailConfig(NamedTuple):
 
 class SkillOutcome(NamedTuple):
     """One skill of a sequence. end: success | joint_limit | contact_lost | horizon |
-    no_grasp | no_plan. head_start, tail_end: (7,) where its head's plan started and
-    its tail ended (rad)."""
+        no_grasp | no_plan. plan_checks: the head's validity checks (OMPL; 0 without a
+    goal). head_start, tail_end: (7,) where its head's plan started and
+        its tail ended (rad)."""
 
     task: str
     grasp: int
-    plan_s: float
+    plan_checks: int
     tracking_error: float
     steps: int
     success: bool
@@ -329,20 +341,20 @@ def run_sequence(
         start = sim.joints()
         plan_env.set_object_joints(sim.object_joints())
         goal = head_goal(skill.initiation_set, frame, plan_env, cfg.clearance_m, cfg.grasps_tried)
-        plan_s, error, steps, success, end = 0.0, float("nan"), 0, False, "no_grasp"
+        checks, error, steps, success, end = 0, float("nan"), 0, False, "no_grasp"
         if goal.q is not None:
             valid = _validity(plan_env, cfg.clearance_m)
             plan = plan_path(low, high, start, goal.q, valid, "rrtconnect", cfg.plan_time_s,
                              seed=seed * 101 + index, resolution=cfg.resolution,
                              max_checks=cfg.plan_checks)  # fmt: skip
-            plan_s, end = plan.planning_time_s, "no_plan"
+            checks, end = plan.validity_checks, "no_plan"
             if plan.solved:
                 error = sim.track(plan.path, cfg.speed, cfg.k_p, cfg.settle_s)
                 sim.activate(index, frame)
                 steps, success, end = _contact_phase(sim, skill.actor)
         if goal.q is not None and end not in ("no_plan",):
             sim.release_and_retreat(cfg.retreat_m, cfg.release_s, cfg.retreat_s)
-        outcomes.append(SkillOutcome(skill.task.name, goal.grasp, plan_s, error, steps, success,
+        outcomes.append(SkillOutcome(skill.task.name, goal.grasp, checks, error, steps, success,
                                      end, start, sim.joints()))  # fmt: skip
     return outcomes
 

@@ -327,6 +327,10 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         inverse = self.object_pose[:3, :3].T
         return inverse @ (tool - self.object_pose[:3, 3]), inverse @ rotation
 
+    def observe(self) -> NDArray[np.float32]:
+        """The observation (30,) of the current state (as `step` returns it)."""
+        return self._observation()
+
     def _observation(self) -> NDArray[np.float32]:
         q, qd = self._joints()
         tool, rotation = self.tool_in_object()

@@ -26,6 +26,8 @@ from artic.planning.compose import (
     HeadTailConfig,
     Placement,
     Skill,
+    check_compatible,
+    frame_errors,
     layout,
     perceived_placement,
     rot_about_base,
@@ -36,8 +38,9 @@ from artic.sim.cip_tasks import CipTaskName
 
 TASKS: tuple[CipTaskName, ...] = ("door", "drawer", "slide", "lever")
 ModelsUsed = Literal["true", "perceived"]
-TRIAL_COLUMNS = ("trial", "models", "skill", "task", "grasp", "plan_s", "tracking_error_rad",
-                 "steps", "success", "end")  # fmt: skip
+TRIAL_COLUMNS = ("trial", "models", "skill", "task", "handle_error_cm", "yaw_error_deg", "grasp",
+                 "plan_checks", "tracking_error_rad", "steps", "success", "end")  # fmt: skip
+SUCCESS = TRIAL_COLUMNS.index("success")
 COMPOSE_COLUMNS = ("models", "trials", "first_skill_success", "sequence_success")
 
 
@@ -57,7 +60,9 @@ class MotionConfig(Strict):
         "machine-independent limit, so a run gives the same plans on any CPU",
     )
     resolution: float = Field(0.02, gt=0, description="motion check spacing, rad")
-    clearance_m: float = Field(0.005, ge=0, description="least distance to the objects, m")
+    clearance_m: float = Field(
+        0.002, ge=0, description="least distance of the open hand and arm to the objects, m"
+    )
     grasps_tried: int = Field(3, ge=1, description="best grasps tried for a reachable one")
     release_s: float = Field(0.5, gt=0, description="the hand opening, s")
     retreat_m: float = Field(0.1, ge=0, description="tail: retreat along the approach, m")
@@ -193,8 +198,6 @@ def run_trial(cfg: ComposeConfig, inputs: dict[str, Path], trial: int) -> list[l
     with `perceive`, with the perceived ones; rows of `TRIAL_COLUMNS`."""
     files = [SkillFiles(cfg, task, inputs) for task in cfg.skills]
     tasks = [f.task for f in files]
-    from artic.planning.compose import check_compatible
-
     check_compatible(tasks)
     bearings = [float(np.radians(b)) for b in cfg.bearings_deg]
     seed = trial_seed(cfg.seed, trial)
@@ -215,7 +218,9 @@ def run_trial(cfg: ComposeConfig, inputs: dict[str, Path], trial: int) -> list[l
             sim.close()
             plan_env.close()
         for k, o in enumerate(outcomes):
-            rows.append([trial, models, k, o.task, o.grasp, round(o.plan_s, 3),
+            handle, yaw = frame_errors(true[k], known[k])
+            rows.append([trial, models, k, o.task, round(handle, 4), round(yaw, 4), o.grasp,
+                         o.plan_checks,
                          round(o.tracking_error, 6), o.steps, int(o.success), o.end])  # fmt: skip
     return rows
 
@@ -245,7 +250,30 @@ def _perceived(
     return known
 
 
-def compose_rows(rows: list[list[str]], skills: int) -> list[list[Any]]:
+def per_skill(rows: list[list[str]]) -> list[dict[str, Any]]:
+    """Per models used and skill, from the trials' rows (strings): its success rate, how
+    its contact phases ended, and the median handle and yaw errors of the robot's models."""
+    column = {name: i for i, name in enumerate(TRIAL_COLUMNS)}
+    out = []
+    for models in ("true", "perceived"):
+        for task in dict.fromkeys(r[3] for r in rows if r[1] == models):
+            mine = [r for r in rows if r[1] == models and r[3] == task]
+            ends: dict[str, int] = {}
+            for r in mine:
+                ends[r[column["end"]]] = ends.get(r[column["end"]], 0) + 1
+            out.append({
+                "models": models, "task": task, "trials": len(mine),
+                "success": round(float(np.mean([int(r[SUCCESS]) for r in mine])), 4),
+                "ends": dict(sorted(ends.items())),
+                "handle_error_cm_median": round(float(np.median(
+                    [float(r[column["handle_error_cm"]]) for r in mine])), 3),
+                "yaw_error_deg_median": round(float(np.median(
+                    [float(r[column["yaw_error_deg"]]) for r in mine])), 3),
+            })  # fmt: skip
+    return out
+
+
+def compose_rows(rows: list[list[str]]) -> list[list[Any]]:
     """compose.csv's rows from the trials' rows (strings): per models used, trials,
     the first skill's success rate and the whole sequence's."""
     out: list[list[Any]] = []
@@ -254,8 +282,8 @@ def compose_rows(rows: list[list[str]], skills: int) -> list[list[Any]]:
         if not mine:
             continue
         trials = sorted({int(r[0]) for r in mine})
-        first = [int(r[8]) for r in mine if int(r[2]) == 0]
-        whole = [all(int(r[8]) for r in mine if int(r[0]) == t) for t in trials]
+        first = [int(r[SUCCESS]) for r in mine if int(r[2]) == 0]
+        whole = [all(int(r[SUCCESS]) for r in mine if int(r[0]) == t) for t in trials]
         out.append([models, len(trials), round(float(np.mean(first)), 4),
                     round(float(np.mean(whole)), 4)])  # fmt: skip
     return out
