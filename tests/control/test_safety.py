@@ -15,6 +15,7 @@ from pydantic import ValidationError
 from artic.control.osc import ArmState, VicesConfig, vices_command
 from artic.control.safety import (
     SafetyConfig,
+    braked_distance,
     cap_stiffness,
     envelope_torque,
     limit_distance,
@@ -243,3 +244,29 @@ def test_in_closed_loop_the_envelope_keeps_a_driven_joint_off_its_limit(joint, u
     cfg = SafetyConfig()
     assert closest(cfg) > cfg.limit_threshold
     assert closest(SafetyConfig(enabled=False)) < cfg.limit_threshold
+
+
+def test_the_braked_distance_is_what_is_left_after_stopping():
+    limits = limit_distance(np.array([0.5, 0.5, -0.5]), np.full(3, -1.0), np.full(3, 1.0))
+    qd = np.array([0.0, 2.0, 2.0])  # at rest; toward the upper limit; away from the lower
+    braked = braked_distance(limits, qd, 20.0)
+    assert braked == pytest.approx([0.5, 0.5 - 4.0 / 40.0, 0.5])
+
+
+def test_a_fast_joint_meets_the_envelope_early(robot):
+    """0.4 rad from its limit (outside sigma1) the joint passes at rest, and is pushed
+    when moving toward the limit at 3 rad/s (braked: 0.4 - 9 / 40 = 0.175 < sigma2)."""
+    low, high = robot.limits
+    q = random_q(robot, np.random.default_rng(3))
+    q[5] = high[5] - 0.4
+    qd = np.zeros(N_JOINTS)
+    at_rest = envelope_torque(arm_state(robot, q, qd), np.zeros(N_JOINTS), low, high, LIMITS,
+                              SafetyConfig())  # fmt: skip
+    qd[5] = 3.0
+    moving = envelope_torque(arm_state(robot, q, qd), np.zeros(N_JOINTS), low, high, LIMITS,
+                             SafetyConfig())  # fmt: skip
+    qd[5] = -3.0
+    leaving = envelope_torque(arm_state(robot, q, qd), np.zeros(N_JOINTS), low, high, LIMITS,
+                              SafetyConfig())  # fmt: skip
+    assert (at_rest.mode, moving.mode, leaving.mode) == ("pass", "push", "pass")
+    assert moving.joints == (5,)

@@ -19,6 +19,7 @@ from artic.learning.cip_train import (
     curve_row,
     episode_seed,
     make_env,
+    start_margin,
     train_run,
 )
 from artic.learning.td3_settings import Td3Config
@@ -104,3 +105,11 @@ def test_a_bc_setting_without_demonstrations_is_bad_input():
 def test_episodes_must_fill_whole_evaluation_blocks():
     with pytest.raises(ValueError, match="episodes"):
         CipTrainConfig(episodes=15, eval_every=10)
+
+
+def test_starts_under_the_envelope_keep_out_of_sigma1():
+    task = get_cip_task("door")
+    for setting in ("safety", "mv", "cip", "cip_bc"):
+        assert start_margin(task, setting) == task.safety.sigma1
+    for setting in ("e2e", "head", "e2e_bc"):
+        assert start_margin(task, setting) == task.safety.limit_threshold

@@ -125,7 +125,7 @@ def test_a_sequence_chains_heads_and_tails():
     def hold(obs: np.ndarray) -> np.ndarray:
         return np.r_[np.zeros(12), 1.0].astype(np.float32)
 
-    skills = [Skill(t, hold, s) for t, s in zip(tasks, sets, strict=True)]
+    skills = [Skill(t, hold, s, 0.1) for t, s in zip(tasks, sets, strict=True)]
 
     def run() -> list:
         scene = layout(tasks, [TURN, -TURN], np.random.default_rng(3))

@@ -193,3 +193,23 @@ def test_a_bad_start_is_refused():
             env.reset(seed=0, options={"start_q": [0.0, 1.0]})
     finally:
         env.close()
+
+
+def test_joint_speeds_stay_near_the_iiwas_limits():
+    """Random actions without the envelope (the stiffest commands), 3 episodes: PyBullet
+    holds every joint near its datasheet speed (`cap_joint_speeds`; its solver's clamp
+    lets a step end up to about 30% above); without the cap the wrist reached 14x."""
+    env = CipEnv("door", safety=False, contact_termination=False)
+    worst = np.zeros(7)
+    try:
+        for episode in range(3):
+            rng = np.random.default_rng(episode)
+            env.reset(seed=episode)
+            for _ in range(150):
+                terminated = env.step(rng.uniform(-1.0, 1.0, 13).astype(np.float32))[2]
+                worst = np.maximum(worst, np.abs(env.robot.qd()) / env.robot.velocity_limits)
+                if terminated:
+                    break
+    finally:
+        env.close()
+    assert worst.max() < 1.5

@@ -36,6 +36,7 @@ from artic.learning.cip_train import (
     read_demonstrations,
     run_seed,
     run_summary,
+    start_margin,
     train_run,
 )
 from artic.planning.cip_demos import read_initiation_set
@@ -60,7 +61,7 @@ def train_chunk(cfg: TrainCipConfig, inputs: dict[str, Path], chunk: int, tmp: P
     writes its curve and final policy (the last checkpoint's actor) into tmp."""
     setting, index = cfg.run_of(chunk)
     spec = SETTINGS[setting]
-    margin = cfg.task.safety.limit_threshold
+    margin = start_margin(cfg.task, setting)
     starts = HomeStarts() if spec.grasp == "home" else GraspStarts(
         read_initiation_set(inputs["initiation_set"], cfg.task), setting, margin)  # fmt: skip
     demos = read_demonstrations(inputs["demos"], cfg.task) if spec.demos else None

@@ -3,7 +3,10 @@ stiffness, clipped torques and the two-threshold guard against joint limits.
 
 Given the torque a controller commands (VICES, `artic.control.osc`) and the arm's state,
 `envelope_torque` returns the torque to apply, by the distance d_i of each joint to its
-nearer limit (stateless: the mode follows from q alone):
+nearer limit once braked: the distance left when the joint, moving toward that limit,
+is stopped at `push_acceleration` (`braked_distance`: d_i - v_i^2 / (2 a); at rest, the
+distance itself), so a fast joint meets the guard early enough to stop short of B's
+threshold (stateless: the mode follows from q and q'):
 
 - every d_i >= sigma1: the command, passed through (clipped to the torque limits);
 - some d_i < sigma1, none < sigma2: a null-space controller (Khatib 1987) replaces the
@@ -117,6 +120,14 @@ def limit_distance(q: F64, low: F64, high: F64) -> LimitDistance:
     return LimitDistance(np.minimum(to_low, to_high), away)
 
 
+def braked_distance(limits: LimitDistance, qd: F64, deceleration: float) -> F64:
+    """(n,) each joint's distance to its nearer limit once braked to rest at
+    `deceleration` rad/s^2: d_i - max(v_i, 0)^2 / (2 deceleration), v_i its speed toward
+    that limit (negative: beyond reach of a stop before it). At rest, d_i."""
+    toward = np.maximum(-limits.away * np.asarray(qd, dtype=np.float64), 0.0)
+    return np.asarray(limits.distance - toward**2 / (2.0 * deceleration), np.float64)
+
+
 def cap_stiffness(command: VicesCommand, kp_max: float) -> VicesCommand:
     """The command with k_p clipped to kp_max and k_d scaled by sqrt(k_p' / k_p), which
     keeps the damping ratio of each axis."""
@@ -165,7 +176,8 @@ def envelope_torque(
     limit = np.asarray(torque_limits, dtype=np.float64)
     command = np.asarray(command, dtype=np.float64)
     limits = limit_distance(state.q, low, high)
-    inside2, inside1 = limits.distance < cfg.sigma2, limits.distance < cfg.sigma1
+    ahead = braked_distance(limits, state.qd, cfg.push_acceleration)
+    inside2, inside1 = ahead < cfg.sigma2, ahead < cfg.sigma1
     if not cfg.enabled or not inside1.any():
         return SafeTorque(np.clip(command, -limit, limit), "pass", ())
     if inside2.any():
@@ -176,7 +188,7 @@ def envelope_torque(
     mass_inv = np.linalg.inv(state.mass)
     lam = inverse(jac @ mass_inv @ jac.T)
     hold = jac.T @ (lam @ (-cfg.hold_damping * (jac @ state.qd)))
-    tau_0 = limit_avoidance_torque(state, limits, inside1, cfg)
+    tau_0 = limit_avoidance_torque(state, LimitDistance(ahead, limits.away), inside1, cfg)
     torque = hold + null_space_torque(jac, state.mass, tau_0) + state.bias
     joints = tuple(int(i) for i in np.flatnonzero(inside1))
     return SafeTorque(np.clip(torque, -limit, limit), "null_space", joints)

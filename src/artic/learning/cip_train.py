@@ -165,6 +165,15 @@ class CipEpisodes(gym.Wrapper[NDArray[np.float32], NDArray[np.float32], Any, Any
         return obs, reward, terminated, truncated, info
 
 
+def start_margin(task: CipTaskConfig, setting: Setting) -> float:
+    """The least distance (rad) of every joint to its limits at the start of a setting's
+    episode: B's threshold, or sigma1 under the envelope. A start inside sigma1 would
+    begin in the envelope's null-space mode, and the hand closing on the handle can press
+    a joint on past B's threshold before the first action (measured: 2 of 8 random-action
+    episodes of the drawer from the Safety setting's starts; docs/cip.md)."""
+    return task.safety.sigma1 if SETTINGS[setting].safety else task.safety.limit_threshold
+
+
 def make_env(task: CipTaskConfig, setting: Setting) -> CipEnv:
     """The setting's environment: the envelope and B's lost-contact rule as it says."""
     spec = SETTINGS[setting]

@@ -20,7 +20,7 @@ from artic.artifacts.manifest import read_stage_config, verify_file
 from artic.config.schemas import StageConfig, Strict
 from artic.errors import InputError
 from artic.kinematics import Estimator
-from artic.learning.cip_train import SETTINGS, Setting, TrainCipConfig
+from artic.learning.cip_train import SETTINGS, Setting, TrainCipConfig, start_margin
 from artic.planning.compose import (
     ComposeEnv,
     HeadTailConfig,
@@ -153,7 +153,7 @@ class SkillFiles:
         if cfg.setting not in run.settings or cfg.policy_seed >= run.seeds:
             raise InputError(f"policies.{task}: {folder} has no policy of setting "
                              f"{cfg.setting}, seed {cfg.policy_seed}")  # fmt: skip
-        self.task, self.run = run.task, run
+        self.task, self.run, self.setting = run.task, run, cfg.setting
         self.policy = verify_file(folder, manifest, policy_path(cfg))
         #: the policy's sha256 as its train-cip manifest lists it (the file checked equal)
         self.sha256 = manifest.outputs[policy_path(cfg)].sha256
@@ -186,7 +186,7 @@ class SkillFiles:
             return model.predict(obs, deterministic=True)[0]
 
         self.initiation_set.bandit = bandit
-        return Skill(self.task, actor, self.initiation_set)
+        return Skill(self.task, actor, self.initiation_set, start_margin(self.task, self.setting))
 
 
 def trial_seed(seed: int, trial: int) -> int:

@@ -28,7 +28,7 @@ from pydantic import Field
 from artic.artifacts.formats import read_json
 from artic.artifacts.manifest import read_manifest, verify_file
 from artic.config.schemas import StageConfig
-from artic.learning.cip_train import DEMO_ARRAYS, check_input_task, make_env
+from artic.learning.cip_train import DEMO_ARRAYS, check_input_task, make_env, start_margin
 from artic.planning.cip_expert import ExpertConfig, demonstrate, grasp_path_margin
 from artic.planning.cip_grasps import (
     GraspCandidatesConfig,
@@ -100,7 +100,7 @@ def demo_start(
     its limits (`grasp_path_margin`: the expert knows the object's kinematics); None
     when no grasp's IK reaches there."""
     pose = env.draw_pose(seed)
-    ik = robot_ik(env.robot, env.task.safety.limit_threshold)
+    ik = robot_ik(env.robot, start_margin(env.task, "cip_bc"))  # the starts CIP+BC learns from
     rng = np.random.default_rng(0)  # unused: the grasp is given
     best, margin = None, -np.inf
     for grasp in grasp_order(initiation_set):

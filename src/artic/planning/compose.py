@@ -49,9 +49,8 @@ from artic.planning.ompl_adapter import plan_path
 from artic.planning.trajectory import time_parameterize
 from artic.sim.cip_envs import CipEnv, draw_object_pose, task_object
 from artic.sim.cip_tasks import CipTaskConfig
-from artic.sim.gripper import Gripper
-from artic.sim.robot import Robot, command_torque
-from artic.sim.scene import load_articulated, load_ground
+from artic.sim.robot import command_torque
+from artic.sim.scene import load_articulated
 
 if TYPE_CHECKING:
     from artic.kinematics.predict import Predictor
@@ -168,13 +167,8 @@ class ComposeEnv(CipEnv):
         return self.placements[self.active].frame
 
     def _build(self) -> None:
-        client, task = self.client, self.task
-        client.setGravity(0.0, 0.0, task.gravity)
-        client.setTimeStep(task.physics_dt)
-        self.ground = load_ground(client)
-        self.robot = Robot.load(client, self._robot_cfg)
-        self.gripper = Gripper(client, self.robot, task.gripper, task.gravity)
-        self.objects = [load_articulated(client, p.model) for p in self.placements]
+        self._load_arm()
+        self.objects = [load_articulated(self.client, p.model) for p in self.placements]
         self.model = self.placements[self.active].model
         self.object = self.objects[self.active]
 
@@ -262,11 +256,13 @@ def head_goal(
     plan_env: ComposeEnv,
     clearance: float,
     grasps_tried: int,
+    margin: float,
 ) -> HeadGoal:
     """The first of the `grasps_tried` best grasps (`grasp_order`) with a collision-free
     IK solution in the planning scene at the object frame `frame` (4, 4), warm-started
-    from its stored solutions (best score first) turned by the change of bearing."""
-    ik = robot_ik(plan_env.robot, plan_env.task.safety.limit_threshold)
+    from its stored solutions (best score first) turned by the change of bearing, every
+    joint at least `margin` rad from its limits."""
+    ik = robot_ik(plan_env.robot, margin)
     turn = bearing(frame) - bearing(initiation_set.object_pose)
     obstacles = tuple(plan_env.objects)
     for grasp in grasp_order(initiation_set)[:grasps_tried]:
@@ -281,12 +277,14 @@ def head_goal(
 
 
 class Skill(NamedTuple):
-    """A learnt skill: its task, policy pi_c and initiation set (with the training
-    run's bandit)."""
+    """A learnt skill: its task, policy pi_c, initiation set (with the training run's
+    bandit) and the least joint-limit distance of its starts, rad (its setting's:
+    `learning.cip_train.start_margin`)."""
 
     task: CipTaskConfig
     actor: Actor
     initiation_set: InitiationSet
+    margin: float
 
 
 class HeadTailConfig(NamedTuple):
@@ -340,7 +338,8 @@ def run_sequence(
     for index, (skill, frame) in enumerate(zip(skills, frames, strict=True)):
         start = sim.joints()
         plan_env.set_object_joints(sim.object_joints())
-        goal = head_goal(skill.initiation_set, frame, plan_env, cfg.clearance_m, cfg.grasps_tried)
+        goal = head_goal(skill.initiation_set, frame, plan_env, cfg.clearance_m,
+                         cfg.grasps_tried, skill.margin)  # fmt: skip
         checks, error, steps, success, end = 0, float("nan"), 0, False, "no_grasp"
         if goal.q is not None:
             valid = _validity(plan_env, cfg.clearance_m)

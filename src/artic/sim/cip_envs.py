@@ -50,6 +50,7 @@ from artic.sim.robot import (
     N_JOINTS,
     TOOL_LINK,
     Robot,
+    cap_joint_speeds,
     command_torque,
     link_kinematics,
     release_motors,
@@ -153,14 +154,20 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
 
     def _build(self) -> None:
         """The whole scene in the (empty) client, always by the same command sequence."""
+        self._load_arm()
+        self.model = self.object_model()
+        self.object = load_articulated(self.client, self.model)
+
+    def _load_arm(self) -> None:
+        """Physics settings, the table, the iiwa (its joint speeds capped:
+        `cap_joint_speeds`) and the gripper."""
         client, task = self.client, self.task
         client.setGravity(0.0, 0.0, task.gravity)
         client.setTimeStep(task.physics_dt)
         self.ground = load_ground(client)
         self.robot = Robot.load(client, self._robot_cfg)
+        cap_joint_speeds(self.robot)
         self.gripper = Gripper(client, self.robot, task.gripper, task.gravity)
-        self.model = self.object_model()
-        self.object = load_articulated(client, self.model)
 
     # -- state ---------------------------------------------------------------------------
 

@@ -373,6 +373,16 @@ def release_motors(robot: Robot) -> None:
     )
 
 
+def cap_joint_speeds(robot: Robot) -> None:
+    """Hold each joint's speed within the iiwa's limits (`Robot.velocity_limits`, its
+    datasheet's), as its own controller does: PyBullet's solver clamps a joint's speed
+    at `maxJointVelocity` (its default: 100 rad/s). Under torque control a light wrist
+    otherwise spins up within a few steps (measured, Chapter 7's random actions: link 7
+    at 6 rad/s, too fast to brake before its limit). Until the next `resetSimulation`."""
+    for j, limit in enumerate(robot.velocity_limits):
+        robot.client.changeDynamics(robot.body, j, maxJointVelocity=float(limit))
+
+
 def command_torque(robot: Robot, torque: NDArray[np.float64]) -> NDArray[np.float64]:
     """Apply joint torques (7,) N m, clipped to `IIWA7_TORQUE_LIMITS`, for the next
     physics step (TORQUE_CONTROL holds for one `stepSimulation` only: call it every
