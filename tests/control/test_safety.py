@@ -20,6 +20,7 @@ from artic.control.safety import (
     envelope_torque,
     limit_distance,
     null_space_torque,
+    stopping_acceleration,
 )
 from artic.sim.bullet import connect_direct
 from artic.sim.robot import (
@@ -270,3 +271,26 @@ def test_a_fast_joint_meets_the_envelope_early(robot):
                               SafetyConfig())  # fmt: skip
     assert (at_rest.mode, moving.mode, leaving.mode) == ("pass", "push", "pass")
     assert moving.joints == (5,)
+
+
+def test_the_push_stops_a_joint_halfway_and_pushes_hardest_past_that():
+    cfg = SafetyConfig()  # stop point: (0.1 + 0.2) / 2 = 0.15 rad from the limit
+    limits = limit_distance(np.array([0.82, 0.82, 0.87, 0.9]), np.full(4, -1.0), np.full(4, 1.0))
+    qd = np.array([0.0, 1.0, 1.0, -1.0])  # rest 0.18; toward at 0.18 / 0.13; away at 0.1
+    accel = stopping_acceleration(limits, qd, cfg)
+    assert accel[0] == cfg.push_acceleration  # at rest
+    assert accel[1] == pytest.approx(max(1.0 / (2 * 0.03), cfg.push_acceleration))
+    assert accel[2] == cfg.max_push_acceleration  # past the stop point, whatever its speed
+    assert accel[3] == cfg.max_push_acceleration
+
+
+def test_the_push_is_each_joints_own_torque(robot):
+    low, high = robot.limits
+    q = random_q(robot, np.random.default_rng(5))
+    q[4] = low[4] + 0.18
+    state = arm_state(robot, q)
+    safe = envelope_torque(state, np.ones(N_JOINTS), low, high, LIMITS, SafetyConfig())
+    extra = safe.torque - state.bias
+    assert safe.mode == "push" and safe.joints == (4,)
+    assert extra[4] == pytest.approx(SafetyConfig().push_acceleration * state.mass[4, 4])
+    assert np.allclose(np.delete(extra, 4), 0.0)

@@ -22,10 +22,15 @@ threshold (stateless: the mode follows from q and q'):
   bracket is positive semi-definite (zero only if joint i cannot move without moving
   the end effector: the iiwa's elbow, joint 4, whose angle the shoulder-wrist distance
   fixes);
-- some d_i < sigma2: tau = C q' + g + M a, a = push_acceleration s_i on each such joint
-  (0 on the others): that joint accelerates away from its limit and its torque points
-  away (M_ii > 0); "until safe again": once d_i >= sigma2 the null-space controller takes
-  over until d_i >= sigma1.
+- some d_i < sigma2: tau = C q' + g + a_i M_ii s_i on each such joint (nothing more on
+  the others): a torque away from the limit, scaled by the joint's own inertia, with
+  a_i (`stopping_acceleration`) at least push_acceleration, what stops a joint moving
+  toward its limit halfway between B's threshold and sigma2, and the most allowed
+  (max_push_acceleration, then the torque limits) once past that point. Only the joint's
+  own torque: the whole column M e_i (a free arm's acceleration of joint i alone) moved
+  the other joints too, and with the hand on a handle a closing finger then pressed the
+  wrist on into its limit against 6.5 N m (docs/cip.md); "until safe again": once
+  d_i >= sigma2 the null-space controller takes over until d_i >= sigma1.
 
 The stiffness cap (`cap_stiffness`) limits the VICES command's k_p (k_d follows, same
 damping ratio). Torque limits and joint limits are passed in (the iiwa's are in
@@ -74,7 +79,12 @@ class SafetyConfig(Strict):
         20.0, ge=0, description="end-effector braking in the null-space mode, 1/s"
     )
     push_acceleration: float = Field(
-        20.0, gt=0, description="joint acceleration away from the limit inside sigma2, rad/s^2"
+        20.0,
+        gt=0,
+        description="least joint acceleration away from the limit inside sigma2, rad/s^2",
+    )
+    max_push_acceleration: float = Field(
+        5000.0, gt=0, description="largest push acceleration, rad/s^2 (then the torque limits)"
     )
 
     @field_validator("sigma2")
@@ -126,6 +136,20 @@ def braked_distance(limits: LimitDistance, qd: F64, deceleration: float) -> F64:
     that limit (negative: beyond reach of a stop before it). At rest, d_i."""
     toward = np.maximum(-limits.away * np.asarray(qd, dtype=np.float64), 0.0)
     return np.asarray(limits.distance - toward**2 / (2.0 * deceleration), np.float64)
+
+
+def stopping_acceleration(limits: LimitDistance, qd: F64, cfg: SafetyConfig) -> F64:
+    """(n,) the push's acceleration away from each joint's nearer limit, rad/s^2: at
+    least `push_acceleration`, and for a joint moving toward its limit what stops it
+    halfway between B's threshold and sigma2, v^2 / (2 (d - stop)); past that point,
+    whatever its speed, `max_push_acceleration`, the most allowed (then the torque
+    limits): a disturbance, the hand's contact pressing the wrist on, meets the full
+    push rather than one that grows only with its speed."""
+    toward = np.maximum(-limits.away * np.asarray(qd, dtype=np.float64), 0.0)
+    room = limits.distance - 0.5 * (cfg.limit_threshold + cfg.sigma2)
+    with np.errstate(divide="ignore"):
+        needed = np.where(room > 0, toward**2 / (2.0 * np.maximum(room, 1e-12)), np.inf)
+    return np.clip(needed, cfg.push_acceleration, cfg.max_push_acceleration)
 
 
 def cap_stiffness(command: VicesCommand, kp_max: float) -> VicesCommand:
@@ -181,7 +205,8 @@ def envelope_torque(
     if not cfg.enabled or not inside1.any():
         return SafeTorque(np.clip(command, -limit, limit), "pass", ())
     if inside2.any():
-        push = state.mass @ np.where(inside2, cfg.push_acceleration * limits.away, 0.0)
+        accel = stopping_acceleration(limits, state.qd, cfg)
+        push = np.diag(state.mass) * np.where(inside2, accel * limits.away, 0.0)
         torque = np.clip(state.bias + push, -limit, limit)
         return SafeTorque(torque, "push", tuple(int(i) for i in np.flatnonzero(inside2)))
     jac = state.ee_jacobian
