@@ -87,6 +87,7 @@ def test_perceive_adds_the_perceived_models(skills, tmp_path, monkeypatch):
         (["bearings_deg=[1.0,2.0]"], "bearings_deg: 2 values for 1 skills"),
         (["--skills"], "--skills: expects a value"),
         (["--perceive=yes"], "no such option: --perceive=yes"),
+        (["--perceive"], "give one with perception.mdn.drawer"),  # tests ship no models
     ],
 )
 def test_bad_input_exits_2_with_one_line(skills, tmp_path, args, says):

@@ -28,6 +28,7 @@ from artic.planning.cip_compose import (
     SkillFiles,
     compose_rows,
     per_skill,
+    perception_models,
     run_trial,
 )
 from artic.planning.compose import check_compatible
@@ -45,6 +46,8 @@ def _trial_file(trial: int) -> str:
 def _plan(cfg: ComposeConfig, inputs: dict[str, Path]) -> Plan:
     files = [SkillFiles(cfg, task, inputs) for task in cfg.skills]  # bad input before a trial
     check_compatible([f.task for f in files])
+    if cfg.perceive:
+        perception_models(cfg, [f.task.object.category for f in files])
     return Plan([1] * cfg.trials, "trials")
 
 

@@ -225,24 +225,35 @@ def run_trial(cfg: ComposeConfig, inputs: dict[str, Path], trial: int) -> list[l
     return rows
 
 
+def perception_models(cfg: ComposeConfig, categories: list[str]) -> dict[str, Path]:
+    """The Chapter 3 model file of each category, chosen as `artic predict` chooses
+    (`perception.mdn.<category>`, else the local model, else the shipped one); InputError
+    naming the field when a category has none."""
+    from artic.artifacts.model_store import choose_model
+
+    root = Path(cfg.artifacts_root) / "models"
+    models = {}
+    for category in categories:
+        given = cfg.perception.mdn.get(category)
+        models[category] = choose_model("mdn", category, Path(given) if given else None,
+                                        f"perception.mdn.{category}", root=root).path  # fmt: skip
+    return models
+
+
 def _perceived(
     cfg: ComposeConfig, true: list[Placement], bearings: list[float], seed: int
 ) -> list[Placement]:
-    from artic.artifacts.model_store import choose_model
     from artic.kinematics.predict import Predictor
     from artic.planning.models import ModelConfig
     from artic.sim.cip_envs import yaw_pose
 
     view = ModelConfig(source="predicted", refine=cfg.perception.refine,
                        estimator=cfg.perception.estimator, noise=cfg.perception.noise)  # fmt: skip
+    mdns = perception_models(cfg, [p.task.object.category for p in true])
     known = []
     for k, (placement, angle) in enumerate(zip(true, bearings, strict=True)):
         category = placement.task.object.category
-        given = cfg.perception.mdn.get(category)
-        choice = choose_model("mdn", category, Path(given) if given else None,
-                              f"perception.mdn.{category}",
-                              root=Path(cfg.artifacts_root) / "models")  # fmt: skip
-        predictor = Predictor.load(choice.path, category)
+        predictor = Predictor.load(mdns[category], category)
         o = placement.task.object
         nominal = rot_about_base(angle) @ yaw_pose(o.x, o.y, o.z, 0.0)
         seen, _ = perceived_placement(placement, nominal, predictor, view, seed * 31 + k)
