@@ -26,6 +26,8 @@ def test_smoke_pipeline_runs_then_skips(tmp_path, monkeypatch):
     # each stage's line echoes the command that runs it alone (issue 16)
     assert "artic evaluate bootstrap debug=tiny task=drawer" in out
     assert "artic evaluate-bootstrap" not in out
+    assert "artic compose debug=tiny 'skills=[drawer]'" in out  # brackets are not markup
+    assert (tmp_path / "artifacts/smoke/reports/compose/compose.csv").is_file()
     code, out, err = run_cli("pipeline", "smoke")
     assert code == 0, err
     assert "complete" not in out and out.count("up to date") + out.count("skipped") >= 6

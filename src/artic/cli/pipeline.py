@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from artic.cli.registry import StageEntry, load_stage, resolve, say_alias, stage_entries
@@ -94,7 +95,8 @@ def run_pipeline(
             continue
         if verbose:
             console.print(
-                f"[bold]{stage_name}[/]: {command_line(entry, spec.overrides)}", soft_wrap=True
+                f"[bold]{stage_name}[/]: {escape(command_line(entry, spec.overrides))}",
+                soft_wrap=True,
             )
         t0 = time.perf_counter()
         result = run_stage(stage, list(spec.overrides), force=force)
