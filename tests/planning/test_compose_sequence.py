@@ -19,7 +19,7 @@ from artic.planning.cip_grasps import (
 )
 from artic.planning.compose import (
     ComposeEnv,
-    HeadTailConfig,
+    MotionConfig,
     Placement,
     Skill,
     anchored_frame,
@@ -132,7 +132,7 @@ def test_a_sequence_chains_heads_and_tails():
         sim, plan_env = ComposeEnv(scene), ComposeEnv(scene)
         try:
             return run_sequence(skills, sim, plan_env, [p.frame for p in scene],
-                                HeadTailConfig(plan_checks=50_000), seed=3)  # fmt: skip
+                                MotionConfig(plan_checks=50_000), seed=3)  # fmt: skip
         finally:
             sim.close()
             plan_env.close()

@@ -23,7 +23,7 @@ from artic.kinematics import Estimator
 from artic.learning.cip_train import SETTINGS, Setting, TrainCipConfig, start_margin
 from artic.planning.compose import (
     ComposeEnv,
-    HeadTailConfig,
+    MotionConfig,
     Placement,
     Skill,
     check_compatible,
@@ -42,34 +42,6 @@ TRIAL_COLUMNS = ("trial", "models", "skill", "task", "handle_error_cm", "yaw_err
                  "plan_checks", "tracking_error_rad", "steps", "success", "end")  # fmt: skip
 SUCCESS = TRIAL_COLUMNS.index("success")
 COMPOSE_COLUMNS = ("models", "trials", "first_skill_success", "sequence_success")
-
-
-class MotionConfig(Strict):
-    """Heads and tails (`planning.compose.HeadTailConfig`)."""
-
-    speed: float = Field(1.0, gt=0, description="largest joint speed of a tracked plan, rad/s")
-    k_p: float = Field(400.0, gt=0, description="computed-torque stiffness, 1/s^2 (k_d 2 sqrt)")
-    settle_s: float = Field(0.3, ge=0, description="hold at a plan's end, s")
-    plan_time_s: float = Field(
-        60.0, gt=0, description="RRTConnect's wall-time budget per head, s (a safety net)"
-    )
-    plan_checks: int = Field(
-        100_000,
-        ge=1,
-        description="RRTConnect stops after this many validity checks: a "
-        "machine-independent limit, so a run gives the same plans on any CPU",
-    )
-    resolution: float = Field(0.02, gt=0, description="motion check spacing, rad")
-    clearance_m: float = Field(
-        0.002, ge=0, description="least distance of the open hand and arm to the objects, m"
-    )
-    grasps_tried: int = Field(3, ge=1, description="best grasps tried for a reachable one")
-    release_s: float = Field(0.5, gt=0, description="the hand opening, s")
-    retreat_m: float = Field(0.1, ge=0, description="tail: retreat along the approach, m")
-    retreat_s: float = Field(1.0, gt=0, description="tail: the retreat's duration, s")
-
-    def constants(self) -> HeadTailConfig:
-        return HeadTailConfig(**self.model_dump())
 
 
 class PerceptionConfig(Strict):
@@ -213,7 +185,7 @@ def run_trial(cfg: ComposeConfig, inputs: dict[str, Path], trial: int) -> list[l
         try:
             skills = [f.load(sim) for f in files]
             outcomes = run_sequence(skills, sim, plan_env, [p.frame for p in known],
-                                    cfg.motion.constants(), seed)  # fmt: skip
+                                    cfg.motion, seed)  # fmt: skip
         finally:
             sim.close()
             plan_env.close()

@@ -39,7 +39,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 
+from artic.config.schemas import Strict
 from artic.control.osc import vices_command
 from artic.control.tracking import computed_torque
 from artic.errors import InputError
@@ -287,27 +289,36 @@ class Skill(NamedTuple):
     margin: float
 
 
-class HeadTailConfig(NamedTuple):
-    """The constants of heads and tails (`ComposeConfig.motion` in `cli/compose.py`)."""
+class MotionConfig(Strict):
+    """The constants of heads and tails (`compose`'s `motion`)."""
 
-    speed: float = 1.0
-    k_p: float = 400.0
-    settle_s: float = 0.3
-    plan_time_s: float = 60.0
-    plan_checks: int = 100_000
-    resolution: float = 0.02
-    clearance_m: float = 0.002
-    grasps_tried: int = 3
-    release_s: float = 0.5
-    retreat_m: float = 0.1
-    retreat_s: float = 1.0
+    speed: float = Field(1.0, gt=0, description="largest joint speed of a tracked plan, rad/s")
+    k_p: float = Field(400.0, gt=0, description="computed-torque stiffness, 1/s^2 (k_d 2 sqrt)")
+    settle_s: float = Field(0.3, ge=0, description="hold at a plan's end, s")
+    plan_time_s: float = Field(
+        60.0, gt=0, description="RRTConnect's wall-time budget per head, s (a safety net)"
+    )
+    plan_checks: int = Field(
+        100_000,
+        ge=1,
+        description="RRTConnect stops after this many validity checks: a "
+        "machine-independent limit, so a run gives the same plans on any CPU",
+    )
+    resolution: float = Field(0.02, gt=0, description="motion check spacing, rad")
+    clearance_m: float = Field(
+        0.002, ge=0, description="least distance of the open hand and arm to the objects, m"
+    )
+    grasps_tried: int = Field(3, ge=1, description="best grasps tried for a reachable one")
+    release_s: float = Field(0.5, gt=0, description="the hand opening, s")
+    retreat_m: float = Field(0.1, ge=0, description="tail: retreat along the approach, m")
+    retreat_s: float = Field(1.0, gt=0, description="tail: the retreat's duration, s")
 
 
 class SkillOutcome(NamedTuple):
     """One skill of a sequence. end: success | joint_limit | contact_lost | horizon |
-        no_grasp | no_plan. plan_checks: the head's validity checks (OMPL; 0 without a
-    goal). head_start, tail_end: (7,) where its head's plan started and
-        its tail ended (rad)."""
+    no_grasp | no_plan. plan_checks: the head's validity checks (OMPL; 0 without a
+    goal). head_start, tail_end: (7,) where its head's plan started and its tail ended
+    (rad)."""
 
     task: str
     grasp: int
@@ -325,7 +336,7 @@ def run_sequence(
     sim: ComposeEnv,
     plan_env: ComposeEnv,
     frames: Sequence[F64],
-    cfg: HeadTailConfig,
+    cfg: MotionConfig,
     seed: int,
 ) -> list[SkillOutcome]:
     """One sequence (module docstring) in `sim` (its placements: the true scene), the
