@@ -107,13 +107,17 @@ def test_grasp_candidates_writes_the_initiation_set_and_its_counts(chain):
 def test_cip_demos_writes_every_episode_and_which_succeeded(chain):
     arrays = read_npz(chain.demos / "demos.npz", DEMO_ARRAYS)
     summary = json.loads((chain.demos / "summary.json").read_text())
-    assert len(arrays["success"]) == summary["demos"] == 2
-    assert summary["succeeded"] == int(arrays["success"].sum()) >= 1
+    assert len(arrays["success"]) == summary["demos"] + summary["home_demos"] == 4
+    assert arrays["from_home"].tolist() == [False, False, True, True]
+    assert summary["succeeded"] == int(arrays["success"][:2].sum()) >= 1
+    assert summary["succeeded_from_home"] == int(arrays["success"][2:].sum()) >= 1
     n = len(arrays["actions"])
     assert arrays["obs"].shape == arrays["next_obs"].shape == (n, 30)
     assert arrays["actions"].shape == (n, 13) and np.abs(arrays["actions"]).max() <= 1.0
     steps = [e["steps"] for e in summary["episodes"]]
-    assert np.bincount(arrays["episode"], minlength=2).tolist() == steps
+    assert np.bincount(arrays["episode"], minlength=4).tolist() == steps
+    home = np.isin(arrays["episode"], [2, 3])  # a reach from home, then the expert
+    assert arrays["obs"][home][0, 23] > 0.05 > arrays["obs"][~home][0, 23]  # the opening
     assert read_manifest(chain.demos).inputs["initiation_set"].stage == "grasp-candidates"
 
 
@@ -211,3 +215,15 @@ def test_bad_input_exits_2_with_one_line(chain, tmp_path, name):
     assert code == 2, (name, err)
     assert len(lines) == 1 and fragment in lines[0], (name, err)
     assert not (tmp_path / "bad").exists() and not (tmp_path / "bad.partial").exists()
+
+
+def test_e2e_bc_needs_demonstrations_from_home(chain, tmp_path):
+    demos = tmp_path / "demos"
+    code, _, err = run_cli("cip-demos", "--task", "drawer", "debug=tiny", "home_demos=0",
+                           f"initiation_set={chain.grasps}", f"out={demos}")  # fmt: skip
+    assert code == 0, err
+    code, _, err = run_cli("train-cip", "--task", "drawer", "debug=tiny", "settings=[e2e_bc]",
+                           f"initiation_set={chain.grasps}", f"demos={demos}",
+                           f"out={tmp_path / 'policy'}")  # fmt: skip
+    assert code == 2 and "no successful demonstration from home (0 of 0)" in err, err
+    assert not (tmp_path / "policy").exists()

@@ -51,8 +51,9 @@ def _run_dir(cfg: TrainCipConfig, chunk: int) -> str:
 def _plan(cfg: TrainCipConfig, inputs: dict[str, Path]) -> Plan:
     if "initiation_set" in inputs:  # bad input before any run
         read_initiation_set(inputs["initiation_set"], cfg.task)
-    if "demos" in inputs:
-        read_demonstrations(inputs["demos"], cfg.task)
+    for setting in cfg.settings:
+        if SETTINGS[setting].demos:
+            read_demonstrations(inputs["demos"], cfg.task, SETTINGS[setting].grasp == "home")
     return Plan([cfg.train.episodes] * (len(cfg.settings) * cfg.seeds), "episodes")
 
 
@@ -64,7 +65,9 @@ def train_chunk(cfg: TrainCipConfig, inputs: dict[str, Path], chunk: int, tmp: P
     margin = start_margin(cfg.task, setting)
     starts = HomeStarts() if spec.grasp == "home" else GraspStarts(
         read_initiation_set(inputs["initiation_set"], cfg.task), setting, margin)  # fmt: skip
-    demos = read_demonstrations(inputs["demos"], cfg.task) if spec.demos else None
+    demos = (
+        read_demonstrations(inputs["demos"], cfg.task, spec.grasp == "home") if spec.demos else None
+    )
     state_file = WorkDir(Path(cfg.out)).resume_dir(f"run_{chunk:03d}") / "state.pt"
     state, save = torch_checkpoint(state_file)
     seed = run_seed(cfg.seed, index)

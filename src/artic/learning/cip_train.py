@@ -51,10 +51,12 @@ CURVE_COLUMNS = ["setting", "seed", "episode", "success", "success_best", "viola
                  "violation_rate_train", "return_mean"]  # fmt: skip
 CURVE = "learning_curve.csv"
 DEMOS_NPZ = "demos.npz"
-DEMO_ARRAYS = ("obs", "actions", "rewards", "next_obs", "dones", "episode", "success")
+DEMO_ARRAYS = ("obs", "actions", "rewards", "next_obs", "dones", "episode", "success",
+               "from_home")  # fmt: skip
 """The arrays of cip-demos' demos.npz: every recorded transition (N rows: obs (N, 30),
 actions (N, 13), rewards (N,), next_obs (N, 30), dones (N,) 1 where the episode
-terminated, episode (N,) its episode's index) and success (E,) of each episode."""
+terminated, episode (N,) its episode's index), success (E,) of each episode and
+from_home (E,): started at home (E2E+BC's), not at a CIP start (CIP+BC's)."""
 
 
 class SettingSpec(NamedTuple):
@@ -395,19 +397,24 @@ def check_input_task(name: str, folder: Path, manifest: Manifest, task: CipTaskC
         raise InputError(f"{name}: {folder} was made with another task.object than this config's")
 
 
-def read_demonstrations(folder: Path, task: CipTaskConfig) -> Demonstrations:
+def read_demonstrations(folder: Path, task: CipTaskConfig, from_home: bool) -> Demonstrations:
     """The transitions of the successful episodes in the cip-demos output `folder` (made
-    for `task`); InputError naming the folder when it holds none."""
+    for `task`) that started at home (`from_home`: E2E+BC's) or at a CIP start (CIP+BC's);
+    InputError naming the folder when it holds none."""
     manifest = read_manifest(folder, expected_stage="cip-demos")
     check_input_task("demos", folder, manifest, task)
     arrays = read_npz(verify_file(folder, manifest, DEMOS_NPZ), DEMO_ARRAYS)
     success, episode = arrays["success"].astype(bool), arrays["episode"].astype(np.int64)
     if len(episode) and (episode.min() < 0 or episode.max() >= len(success)):
         raise InputError(f"{folder / DEMOS_NPZ}: episode: indices outside 0-{len(success) - 1}")
-    keep = success[episode]
+    if arrays["from_home"].shape != success.shape:
+        raise InputError(f"{folder / DEMOS_NPZ}: from_home: one value per episode expected")
+    kind = arrays["from_home"].astype(bool) == from_home
+    keep = (success & kind)[episode]
     if not keep.any():
-        raise InputError(f"demos: {folder} holds no successful demonstration "
-                         f"(0 of {len(success)})")  # fmt: skip
+        start = "from home" if from_home else "from a CIP start"
+        raise InputError(f"demos: {folder} holds no successful demonstration {start} "
+                         f"(0 of {int(kind.sum())})")  # fmt: skip
     return Demonstrations(*(arrays[k][keep] for k in DEMO_ARRAYS[:5]))
 
 

@@ -29,7 +29,12 @@ from artic.artifacts.formats import read_json
 from artic.artifacts.manifest import read_manifest, verify_file
 from artic.config.schemas import StageConfig
 from artic.learning.cip_train import DEMO_ARRAYS, check_input_task, make_env, start_margin
-from artic.planning.cip_expert import ExpertConfig, demonstrate, grasp_path_margin
+from artic.planning.cip_expert import (
+    ExpertConfig,
+    demonstrate,
+    demonstrate_from_home,
+    grasp_path_margin,
+)
 from artic.planning.cip_grasps import (
     GraspCandidatesConfig,
     InitiationSet,
@@ -58,7 +63,10 @@ class CipDemosConfig(StageConfig):
 
     task: CipTaskConfig
     initiation_set: str = Field(description="a grasp-candidates output folder of the task")
-    demos: int = Field(10, ge=1, description="expert episodes (thesis: ten)")
+    demos: int = Field(10, ge=1, description="expert episodes from CIP starts (thesis: ten)")
+    home_demos: int = Field(
+        10, ge=0, description="expert episodes from home, for E2E+BC (the reach planned)"
+    )
     expert: ExpertConfig = Field(default_factory=ExpertConfig, description="the expert")
 
 
@@ -124,8 +132,10 @@ class DemoRecording(NamedTuple):
 
 def record_demos(cfg: CipDemosConfig, initiation_set: InitiationSet) -> DemoRecording:
     """`cfg.demos` expert episodes (`cip_expert.demonstrate`) from CIP starts in the
-    environment of the cip and cip_bc settings (envelope and B's lost contact on)."""
-    env = make_env(cfg.task, "cip_bc")
+    environment of the cip and cip_bc settings (envelope and B's lost contact on), then
+    `cfg.home_demos` from home (`cip_expert.demonstrate_from_home`) in E2E+BC's (neither),
+    each reaching for its seed's CIP start. Episode k is reset from (seed, k)."""
+    env, home_env = make_env(cfg.task, "cip_bc"), make_env(cfg.task, "e2e_bc")
     obs, act = tuple(env.observation_space.shape or ()), tuple(env.action_space.shape or ())
     columns: list[list[NDArray[Any]]] = [
         [np.zeros((0, *obs), np.float32)], [np.zeros((0, *act), np.float32)], [np.zeros(0)],
@@ -133,27 +143,32 @@ def record_demos(cfg: CipDemosConfig, initiation_set: InitiationSet) -> DemoReco
     ]  # fmt: skip
     episodes: list[dict[str, Any]] = []
     try:
-        for k in range(cfg.demos):
-            seed = demo_seed(cfg.seed, k)
+        for k in range(cfg.demos + cfg.home_demos):
+            seed, from_home = demo_seed(cfg.seed, k), k >= cfg.demos
             start = demo_start(initiation_set, env, seed, cfg.expert.overshoot)
+            record = {"episode": k, "seed": seed, "from_home": from_home, "grasp": -1,
+                      "solution": -1, "steps": 0, "return": 0.0, "success": False}  # fmt: skip
             if start is None or start.q is None:
-                episodes.append({"episode": k, "seed": seed, "grasp": -1, "solution": -1,
-                                 "steps": 0, "return": 0.0, "success": False})  # fmt: skip
+                episodes.append(record)
                 continue
-            demo = demonstrate(env, seed, start.q, cfg.expert)
+            if from_home:
+                demo = demonstrate_from_home(home_env, seed, start.q, cfg.expert)
+            else:
+                demo = demonstrate(env, seed, start.q, cfg.expert)
             steps = len(demo.actions)
             parts: list[NDArray[Any]] = [demo.obs, demo.actions, demo.rewards, demo.next_obs,
                                          demo.dones, np.full(steps, k)]  # fmt: skip
             for column, part in zip(columns, parts, strict=True):
                 column.append(part)
-            episodes.append({"episode": k, "seed": seed, "grasp": start.grasp,
-                             "solution": start.solution, "steps": steps,
-                             "return": float(demo.rewards.sum()),
+            episodes.append({**record, "grasp": start.grasp, "solution": start.solution,
+                             "steps": steps, "return": float(demo.rewards.sum()),
                              "success": demo.success})  # fmt: skip
     finally:
         env.close()
+        home_env.close()
     arrays = {name: np.concatenate(c) for name, c in zip(DEMO_ARRAYS[:6], columns, strict=True)}
     arrays["success"] = np.array([e["success"] for e in episodes], dtype=bool)
+    arrays["from_home"] = np.array([e["from_home"] for e in episodes], dtype=bool)
     arrays["seed"] = np.array([e["seed"] for e in episodes], dtype=np.int64)
     arrays["grasp"] = np.array([e["grasp"] for e in episodes], dtype=np.int64)
     return DemoRecording(arrays, episodes)

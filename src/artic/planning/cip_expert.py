@@ -7,10 +7,15 @@ From a CIP start (the gripper closed on the handle): the grasp is the tool pose 
 fixed to the handle's link at the current opening; every action asks for the tool pose
 that grasp has `lead` m further along its path (toward beta_c and beyond), as a
 displacement and rotation in the object's frame (the environment's action frame),
-scaled to the action range, at the fixed stiffness `stiffness_action`. Demonstrations
-from home (the E2E+BC setting's) are not built yet: played as VICES actions from home,
-a reach to the handle ran a joint into its limit on 2 of 6 episodes and never grasped
-(docs/cip.md).
+scaled to the action range, at the fixed stiffness `stiffness_action`.
+
+From home (`demonstrate_from_home`, the E2E+BC setting's episodes): first the reach, an
+OMPL RRTConnect plan from home to the CIP start in the episode's scene (the hand open,
+`reach_clearance` m from the object), time-parameterised at `reach_speed` rad/s and its
+tool poses played as VICES targets at `reach_stiffness` with the hand open; then
+`settle_actions` actions holding the plan's last pose and `close_actions` closing the
+hand there; then the expert as above. A straight reach from home instead ran a joint
+into its limit on 2 of 6 episodes and never grasped (docs/cip.md).
 """
 
 from __future__ import annotations
@@ -38,6 +43,18 @@ class ExpertConfig(Strict):
     stiffness_action: float = Field(
         0.0, ge=-1, le=1, description="the 6 stiffness actions (0: mid-range k_p)"
     )
+    reach_speed: float = Field(0.8, gt=0, description="from home: the reach's joint speed, rad/s")
+    reach_stiffness: float = Field(
+        1.0, ge=-1, le=1, description="from home: the stiffness actions of the reach"
+    )
+    reach_clearance: float = Field(
+        0.002, ge=0, description="from home: the planned reach's distance to the object, m"
+    )
+    reach_checks: int = Field(
+        100_000, ge=1, description="from home: RRTConnect's validity checks at most"
+    )
+    settle_actions: int = Field(10, ge=0, description="from home: holding the reach's end")
+    close_actions: int = Field(10, ge=1, description="from home: closing the hand there")
 
 
 class Demonstration(NamedTuple):
@@ -95,22 +112,78 @@ def expert_action(env: CipEnv, grasp: Grasp, cfg: ExpertConfig) -> NDArray[np.fl
     return pose_action(env, target, cfg.stiffness_action, close=True)
 
 
+Row = tuple[NDArray[np.float32], NDArray[np.float32], float, NDArray[np.float32], bool]
+
+
+class _Episode:
+    """Transitions recorded as they are taken."""
+
+    def __init__(self, env: CipEnv, obs: NDArray[np.float32]) -> None:
+        self.env, self.obs, self.rows = env, obs, list[Row]()
+        self.done = self.success = False
+
+    def step(self, action: NDArray[np.float32]) -> None:
+        next_obs, reward, terminated, truncated, info = self.env.step(action)
+        self.rows.append((self.obs, action, float(reward), next_obs, bool(terminated)))
+        self.obs, self.done = next_obs, bool(terminated or truncated)
+        self.success = bool(info["success"])
+
+    def finish_with_expert(self, cfg: ExpertConfig) -> Demonstration:
+        grasp = held_grasp(self.env)
+        while not self.done:
+            self.step(expert_action(self.env, grasp, cfg))
+        if not self.rows:
+            empty = np.zeros((0, *self.obs.shape), np.float32)
+            return Demonstration(empty, np.zeros((0, 13), np.float32), np.zeros(0), empty,
+                                 np.zeros(0, bool), False)  # fmt: skip
+        o, a, r, n, d = zip(*self.rows, strict=True)
+        return Demonstration(np.array(o), np.array(a), np.array(r), np.array(n), np.array(d),
+                             self.success)  # fmt: skip
+
+
 def demonstrate(env: CipEnv, seed: int, start_q: F64, cfg: ExpertConfig) -> Demonstration:
     """One expert episode from a CIP start: `env.reset(seed=seed)` with the arm at
     `start_q` (7,) and the gripper closed on the handle there, then `expert_action`
     until the episode ends."""
     obs, _ = env.reset(seed=seed, options={"start_q": start_q, "grasp": True})
-    grasp = held_grasp(env)
-    rows: list[tuple[NDArray[np.float32], NDArray[np.float32], float, NDArray[np.float32], bool]]
-    rows = []
-    done, success = False, False
-    while not done:
-        action = expert_action(env, grasp, cfg)
-        next_obs, reward, terminated, truncated, info = env.step(action)
-        rows.append((obs, action, float(reward), next_obs, bool(terminated)))
-        obs, done, success = next_obs, bool(terminated or truncated), bool(info["success"])
-    o, a, r, n, d = zip(*rows, strict=True)
-    return Demonstration(np.array(o), np.array(a), np.array(r), np.array(n), np.array(d), success)
+    return _Episode(env, obs).finish_with_expert(cfg)
+
+
+def reach_poses(env: CipEnv, seed: int, start_q: F64, cfg: ExpertConfig) -> list[F64] | None:
+    """The tool poses (world, one per action) of the reach from home to `start_q` in
+    the scene of `env.reset(seed=seed)` (module docstring); None when OMPL finds no plan.
+    Leaves the environment to be reset."""
+    from artic.planning.cip_grasps import in_collision
+    from artic.planning.ompl_adapter import plan_path
+    from artic.planning.trajectory import time_parameterize
+
+    env.reset(seed=seed)
+    low, high = env.limits
+    plan = plan_path(low, high, env.rest_q, start_q,
+                     lambda q: not in_collision(env, q, cfg.reach_clearance), "rrtconnect",
+                     60.0, seed=seed, resolution=0.02, max_checks=cfg.reach_checks)  # fmt: skip
+    if not plan.solved:
+        return None
+    timed = time_parameterize(plan.path, env.task.control_dt, cfg.reach_speed, smoothing_s=0.1)
+    return [env.robot.tool_pose_at(q) for q in timed.q[1:]]
+
+
+def demonstrate_from_home(env: CipEnv, seed: int, start_q: F64, cfg: ExpertConfig) -> Demonstration:
+    """One expert episode from home (E2E+BC): the reach to `start_q` (7,), the hand
+    closed there, then `expert_action` until the episode ends (module docstring). No
+    plan: an episode of no transitions, not a success."""
+    poses = reach_poses(env, seed, start_q, cfg)
+    obs, _ = env.reset(seed=seed)
+    episode = _Episode(env, obs)
+    if poses is None:
+        episode.done = True
+        return episode.finish_with_expert(cfg)
+    hold = [(poses[-1], False)] * cfg.settle_actions + [(poses[-1], True)] * cfg.close_actions
+    for target, close in [(p, False) for p in poses] + hold:
+        if episode.done:
+            break
+        episode.step(pose_action(env, target, cfg.reach_stiffness, close))
+    return episode.finish_with_expert(cfg)
 
 
 def grasp_path_margin(
