@@ -362,7 +362,7 @@ def run_sequence(
                 error = sim.track(plan.path, cfg.speed, cfg.k_p, cfg.settle_s)
                 sim.activate(index, frame)
                 steps, success, end = _contact_phase(sim, skill.actor)
-        if goal.q is not None and end not in ("no_plan",):
+        if goal.q is not None and end != "no_plan":
             sim.release_and_retreat(cfg.retreat_m, cfg.release_s, cfg.retreat_s)
         outcomes.append(SkillOutcome(skill.task.name, goal.grasp, checks, error, steps, success,
                                      end, start, sim.joints()))  # fmt: skip
