@@ -24,6 +24,7 @@ from artic.objects.model import ArticulatedObject
 from artic.objects.spec import CategoryConfig, ObjectSpec, PartsConfig, Pose, sample_spec
 from artic.objects.urdf import write_urdf
 from artic.sim.bullet import connect_direct
+from urdf_folder import write_urdf_folder
 
 CATEGORY_DIR = Path(__file__).resolve().parents[2] / "conf" / "common" / "category"
 NAMES = ("slide", "lever")
@@ -79,16 +80,6 @@ def _axis(obj: ArticulatedObject) -> tuple[np.ndarray, np.ndarray]:
     frame = invert(obj.base_pose) @ obj.joint_frames(np.zeros(1))[0]
     direction = frame[:3, :3] @ obj.movable_joints[0].axis
     return frame[:3, 3], direction / np.linalg.norm(direction)
-
-
-def _write(obj: ArticulatedObject, folder: Path) -> Path:
-    files = write_urdf(obj)
-    path = folder / f"{obj.name}.urdf"
-    path.write_text(files.urdf)
-    for relative, text in files.meshes.items():
-        (folder / relative).parent.mkdir(parents=True, exist_ok=True)
-        (folder / relative).write_text(text)
-    return path
 
 
 def _load(sim: Any, path: Path, obj: ArticulatedObject) -> int:
@@ -328,7 +319,7 @@ def test_pybullet_loads_the_urdf_with_its_joint_and_limits(
 ) -> None:
     spec = _spec(cip_configs[name], camera, 2)
     obj = build(spec)
-    body = _load(sim, _write(obj, tmp_path), obj)
+    body = _load(sim, write_urdf_folder(obj, tmp_path), obj)
     assert sim.getNumJoints(body) == 2
     for j, joint in enumerate(obj.joints):
         info = sim.getJointInfo(body, j)
@@ -378,7 +369,7 @@ def test_pybullet_holds_the_joint_limits(
     spec = _spec(cip_configs[name], camera, 3)
     obj = build(spec)
     upper = spec.joint_limits[0][1]
-    path = _write(obj, tmp_path)
+    path = write_urdf_folder(obj, tmp_path)
     for loader in ("urdf", "memory"):
         sim = connect_direct()
         try:

@@ -17,21 +17,12 @@ from artic.objects.categories import build
 from artic.objects.model import ArticulatedObject
 from artic.objects.spec import ObjectSpec
 from artic.objects.urdf import write_urdf
+from urdf_folder import write_urdf_folder
 
 CATEGORY_NAMES = ("cabinet", "drawer", "microwave", "toaster", "cabinet2", "refrigerator")
 SpecFactory = Callable[[str, int], ObjectSpec]
 PYBULLET_TYPES = {"revolute": pybullet.JOINT_REVOLUTE, "prismatic": pybullet.JOINT_PRISMATIC}
 PYBULLET_TYPES["fixed"] = pybullet.JOINT_FIXED
-
-
-def _write(obj: ArticulatedObject, folder: Path) -> Path:
-    files = write_urdf(obj)
-    path = folder / f"{obj.name}.urdf"
-    path.write_text(files.urdf)
-    for relative, text in files.meshes.items():
-        (folder / relative).parent.mkdir(parents=True, exist_ok=True)
-        (folder / relative).write_text(text)
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +48,7 @@ def test_pybullet_loads_joints_in_order(
     make_spec: SpecFactory, client: int, tmp_path: Path, name: str
 ) -> None:
     obj = build(make_spec(name, 1))
-    body = _load(client, _write(obj, tmp_path), obj)
+    body = _load(client, write_urdf_folder(obj, tmp_path), obj)
     assert pybullet.getNumJoints(body, physicsClientId=client) == len(obj.joints)
     for j, joint in enumerate(obj.joints):
         info = pybullet.getJointInfo(body, j, physicsClientId=client)
@@ -79,7 +70,7 @@ def test_pybullet_link_poses_match_forward_kinematics(
 ) -> None:
     spec = make_spec(name, 2)
     obj = build(spec)
-    body = _load(client, _write(obj, tmp_path), obj)
+    body = _load(client, write_urdf_folder(obj, tmp_path), obj)
     movable = [j for j, joint in enumerate(obj.joints) if joint.type != "fixed"]
     rng = np.random.default_rng(0)
     for _ in range(3):
@@ -99,7 +90,7 @@ def test_pybullet_link_poses_match_forward_kinematics(
 @pytest.mark.parametrize("name", CATEGORY_NAMES)
 def test_yourdfpy_validates(make_spec: SpecFactory, tmp_path: Path, name: str) -> None:
     obj = build(make_spec(name, 0))
-    urdf = yourdfpy.URDF.load(str(_write(obj, tmp_path)))
+    urdf = yourdfpy.URDF.load(str(write_urdf_folder(obj, tmp_path)))
     assert urdf.validate()
     assert list(urdf.link_map) == [link.name for link in obj.links]
     assert urdf.actuated_joint_names == [j.name for j in obj.movable_joints]
@@ -108,7 +99,7 @@ def test_yourdfpy_validates(make_spec: SpecFactory, tmp_path: Path, name: str) -
 @pytest.mark.skipif(shutil.which("check_urdf") is None, reason="liburdfdom-tools not installed")
 @pytest.mark.parametrize("name", CATEGORY_NAMES)
 def test_check_urdf_accepts(make_spec: SpecFactory, tmp_path: Path, name: str) -> None:
-    path = _write(build(make_spec(name, 0)), tmp_path)
+    path = write_urdf_folder(build(make_spec(name, 0)), tmp_path)
     result = subprocess.run(["check_urdf", str(path)], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
 

@@ -10,8 +10,9 @@ skill of `TRIAL_COLUMNS`.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
@@ -35,6 +36,9 @@ from artic.planning.compose import (
 )
 from artic.render.noise import SensorNoiseConfig
 from artic.sim.cip_tasks import CipTaskName
+
+if TYPE_CHECKING:
+    from artic.kinematics.predict import Predictor
 
 TASKS: tuple[CipTaskName, ...] = ("door", "drawer", "slide", "lever")
 ModelsUsed = Literal["true", "perceived"]
@@ -179,11 +183,12 @@ def run_trial(cfg: ComposeConfig, inputs: dict[str, Path], trial: int) -> list[l
         runs.append(("perceived", _perceived(cfg, true, bearings, seed)))
     setting = SETTINGS[cfg.setting]
     rows: list[list[Any]] = []
+    skills: list[Skill] = []
     for models, known in runs:
         sim = ComposeEnv(true, setting.safety, setting.contact_termination)
         plan_env = ComposeEnv(known, setting.safety, setting.contact_termination)
         try:
-            skills = [f.load(sim) for f in files]
+            skills = skills or [f.load(sim) for f in files]  # the same for every run
             outcomes = run_sequence(skills, sim, plan_env, [p.frame for p in known],
                                     cfg.motion, seed)  # fmt: skip
         finally:
@@ -212,10 +217,17 @@ def perception_models(cfg: ComposeConfig, categories: list[str]) -> dict[str, Pa
     return models
 
 
+@functools.lru_cache(maxsize=8)
+def _predictor(path: Path, category: str) -> Predictor:
+    """The MDN at `path`, loaded once per process (every trial of a chunk's worker)."""
+    from artic.kinematics.predict import Predictor
+
+    return Predictor.load(path, category)
+
+
 def _perceived(
     cfg: ComposeConfig, true: list[Placement], bearings: list[float], seed: int
 ) -> list[Placement]:
-    from artic.kinematics.predict import Predictor
     from artic.planning.models import ModelConfig
     from artic.sim.cip_envs import yaw_pose
 
@@ -225,7 +237,7 @@ def _perceived(
     known = []
     for k, (placement, angle) in enumerate(zip(true, bearings, strict=True)):
         category = placement.task.object.category
-        predictor = Predictor.load(mdns[category], category)
+        predictor = _predictor(mdns[category], category)
         o = placement.task.object
         nominal = rot_about_base(angle) @ yaw_pose(o.x, o.y, o.z, 0.0)
         seen, _ = perceived_placement(placement, nominal, predictor, view, seed * 31 + k)
