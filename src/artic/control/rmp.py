@@ -63,7 +63,7 @@ class JointLimitRmpConfig(Strict):
     """The joint-limit leaves (after Cheng et al. 2021; constants ours, docs/rmp.md)."""
 
     metric: float = Field(10.0, ge=0, description="lambda of m = lambda exp(-x / l); 0: off")
-    length_scale: float = Field(0.1, gt=0, description="l, rad")
+    length_scale: float = Field(0.2, gt=0, description="l, rad")
     kp: float = Field(20.0, ge=0, description="repulsion k_p of a = k_p exp(-x / l), rad/s^2")
     kd: float = Field(5.0, ge=0, description="damping k_d of a = ... - k_d x', 1/s")
 

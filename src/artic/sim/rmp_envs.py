@@ -63,6 +63,7 @@ from artic.sim.robot import (
     Grasp,
     IKSettings,
     Robot,
+    cap_joint_speeds,
     command_torque,
     link_kinematics,
     pose_matrix,
@@ -316,6 +317,7 @@ class RmpEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         low, high = self.limits
         self.robot.set_state(np.clip(q0, low, high))
         release_motors(self.robot)
+        cap_joint_speeds(self.robot)
         scene = self.task.scene
         protected: list[F64] = []
         if isinstance(scene, TrajScene):
