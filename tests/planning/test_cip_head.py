@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from artic.learning.cip_train import CipTrainConfig, train_run
+from artic.learning.cip_train import CipTrainConfig, HeadConfig, train_run
 from artic.learning.td3_settings import Td3Config
 from artic.planning.cip_grasps import build_initiation_set
 from artic.planning.cip_head import GraspStarts
@@ -93,3 +93,42 @@ def test_a_tiny_cip_run_resumes_to_the_same_bytes(initiation_set):
     assert resumed == rows and again[-1]["starts"] == saved[-1]["starts"]
     policy = [t.numpy().tobytes() for t in saved[-1]["td3"]["policy"].values()]
     assert [t.numpy().tobytes() for t in again[-1]["td3"]["policy"].values()] == policy
+
+
+def test_a_tracked_head_plans_from_home_and_ends_on_the_handle(initiation_set):
+    """head.execute=track: the reference starts at home, and the arm tracked along it
+    from there ends at the grasp the teleporting head resets to, the fingers on the
+    handle; the same seed gives the same reference."""
+    env = CipEnv(TASK)
+    try:
+        teleport = GraspStarts(copy.deepcopy(initiation_set), "mv", margin=0.1)
+        options = teleport.choose(env, seed=5, explore=True)
+        assert options is not None
+        track = GraspStarts(copy.deepcopy(initiation_set), "mv", margin=0.1,
+                            head=HeadConfig(execute="track"))  # fmt: skip
+        tracked = track.choose(env, seed=5, explore=True)
+        assert tracked is not None and tracked["grasp"] and "start_q" not in tracked
+        reference = tracked["track"]
+        np.testing.assert_allclose(reference["q"][0], TASK.robot.start_q, atol=1e-9)
+        np.testing.assert_allclose(reference["q"][-1], options["start_q"], atol=1e-9)
+        again = track.choose(env, seed=5, explore=True)
+        assert again is not None and again["track"]["q"].tobytes() == reference["q"].tobytes()
+        _, info = env.reset(seed=5, options=tracked)
+        assert info["head_error"] < 0.01
+        assert env.touching()[:3].sum() > 0 and env.touching()[3:].sum() > 0
+    finally:
+        env.close()
+
+
+def test_a_head_without_a_plan_is_a_failed_episode_of_its_grasp(initiation_set):
+    """A plan that cannot be found (one validity check allowed) starts the episode at
+    home and counts against the grasp, as a grasp without an IK solution does."""
+    env = CipEnv(TASK)
+    try:
+        head = HeadConfig(execute="track", plan_checks=1)
+        starts = GraspStarts(copy.deepcopy(initiation_set), "cip", margin=0.1, head=head)
+        assert starts.choose(env, seed=5, explore=True) is None
+        assert starts.initiation_set.bandit.total == 1
+        assert starts.initiation_set.bandit.success_rates().max() == 0.0
+    finally:
+        env.close()

@@ -31,6 +31,7 @@ from artic.learning.cip_train import (
     CURVE_COLUMNS,
     SETTINGS,
     HomeStarts,
+    Starts,
     TrainCipConfig,
     policy_record,
     read_demonstrations,
@@ -63,8 +64,10 @@ def train_chunk(cfg: TrainCipConfig, inputs: dict[str, Path], chunk: int, tmp: P
     setting, index = cfg.run_of(chunk)
     spec = SETTINGS[setting]
     margin = start_margin(cfg.task, setting)
-    starts = HomeStarts() if spec.grasp == "home" else GraspStarts(
-        read_initiation_set(inputs["initiation_set"], cfg.task), setting, margin)  # fmt: skip
+    starts: Starts = HomeStarts()
+    if spec.grasp != "home":
+        initiation_set = read_initiation_set(inputs["initiation_set"], cfg.task)
+        starts = GraspStarts(initiation_set, setting, margin, cfg.head)
     demos = (
         read_demonstrations(inputs["demos"], cfg.task, spec.grasp == "home") if spec.demos else None
     )

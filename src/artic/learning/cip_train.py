@@ -234,6 +234,39 @@ def curve_row(
     )  # fmt: skip
 
 
+class HeadMotion(Strict):
+    """A head's motion: an OMPL RRTConnect plan to the grasp's IK solution, from home
+    (train-cip) or where the arm stands (compose), time-parameterised and tracked by
+    computed torque with the hand open (`planning/cip_head.py`)."""
+
+    speed: float = Field(1.0, gt=0, description="largest joint speed of a tracked plan, rad/s")
+    k_p: float = Field(400.0, gt=0, description="computed-torque stiffness, 1/s^2 (k_d 2 sqrt)")
+    settle_s: float = Field(0.3, ge=0, description="hold at a plan's end, s")
+    plan_time_s: float = Field(
+        60.0, gt=0, description="RRTConnect's wall-time budget per head, s (a safety net)"
+    )
+    plan_checks: int = Field(
+        100_000,
+        ge=1,
+        description="RRTConnect stops after this many validity checks: a "
+        "machine-independent limit, so a run gives the same plans on any CPU",
+    )
+    resolution: float = Field(0.02, gt=0, description="motion check spacing, rad")
+    clearance_m: float = Field(
+        0.002, ge=0, description="least distance of the open hand and arm to the objects, m"
+    )
+
+
+class HeadConfig(HeadMotion):
+    """How a grasp setting's episode reaches its start (Algorithm 3 lines 6-10):
+    `teleport` resets the arm at the IK solution (the plan's end); `track` plans from
+    home in the episode's scene and tracks the plan (`HeadMotion`) before Gamma."""
+
+    execute: Literal["teleport", "track"] = Field(
+        "teleport", description="teleport | track: how the head reaches the grasp"
+    )
+
+
 class CipTrainConfig(Strict):
     """One run's schedule (issue 21: cpu 120 episodes, 5 rollouts; paper 500, 20)."""
 
@@ -339,6 +372,9 @@ class TrainCipConfig(TrainingStageConfig):
     )
     seeds: int = Field(1, gt=0, description="independent runs per setting (thesis: 10)")
     train: CipTrainConfig = Field(default_factory=CipTrainConfig, description="one run")
+    head: HeadConfig = Field(
+        default_factory=HeadConfig, description="the grasp settings' head (teleport | track)"
+    )
     initiation_set: str | None = Field(
         None, description="a grasp-candidates output folder of the task (the grasp settings)"
     )

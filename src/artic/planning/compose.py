@@ -41,17 +41,14 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
-from artic.config.schemas import Strict
 from artic.control.osc import vices_command
-from artic.control.tracking import computed_torque
 from artic.errors import InputError
+from artic.learning.cip_train import HeadMotion
 from artic.objects.model import ArticulatedObject
 from artic.planning.cip_grasps import InitiationSet, in_collision, robot_ik, solution_order
-from artic.planning.ompl_adapter import plan_path
-from artic.planning.trajectory import time_parameterize
+from artic.planning.cip_head import plan_head, timed_path
 from artic.sim.cip_envs import CipEnv, draw_object_pose, task_object
 from artic.sim.cip_tasks import CipTaskConfig
-from artic.sim.robot import command_torque
 from artic.sim.scene import load_articulated
 
 if TYPE_CHECKING:
@@ -204,15 +201,8 @@ class ComposeEnv(CipEnv):
         (`time_parameterize`, smoothed, then `settle_s` s held at its end) with
         computed torque (gains k_p, 2 sqrt(k_p)); returns the largest joint error at the
         end, rad."""
-        dt = self.task.physics_dt
-        timed = time_parameterize(waypoints, dt, speed, smoothing_s=0.1, hold_s=settle_s)
-        k_d = 2.0 * float(np.sqrt(k_p))
-        for q_ref, qd_ref in zip(timed.q, timed.qd, strict=True):
-            state = self.arm_state()
-            tau = computed_torque(state.mass, state.bias, state.q, state.qd, q_ref, qd_ref,
-                                  k_p, k_d)  # fmt: skip
-            command_torque(self.robot, tau)
-            self.client.stepSimulation()
+        timed = timed_path(waypoints, self.task.physics_dt, speed, settle_s)
+        self.follow(timed.q, timed.qd, k_p)
         return float(np.abs(self.joints() - waypoints[-1]).max())
 
     def hold(self, seconds: float, displacement: F64 | None = None) -> None:
@@ -289,25 +279,10 @@ class Skill(NamedTuple):
     margin: float
 
 
-class MotionConfig(Strict):
-    """The constants of heads and tails (`compose`'s `motion`)."""
+class MotionConfig(HeadMotion):
+    """The constants of heads and tails (`compose`'s `motion`): a head's plan and
+    tracking (`HeadMotion`, shared with train-cip's `head`), the grasps tried, the tail."""
 
-    speed: float = Field(1.0, gt=0, description="largest joint speed of a tracked plan, rad/s")
-    k_p: float = Field(400.0, gt=0, description="computed-torque stiffness, 1/s^2 (k_d 2 sqrt)")
-    settle_s: float = Field(0.3, ge=0, description="hold at a plan's end, s")
-    plan_time_s: float = Field(
-        60.0, gt=0, description="RRTConnect's wall-time budget per head, s (a safety net)"
-    )
-    plan_checks: int = Field(
-        100_000,
-        ge=1,
-        description="RRTConnect stops after this many validity checks: a "
-        "machine-independent limit, so a run gives the same plans on any CPU",
-    )
-    resolution: float = Field(0.02, gt=0, description="motion check spacing, rad")
-    clearance_m: float = Field(
-        0.002, ge=0, description="least distance of the open hand and arm to the objects, m"
-    )
     grasps_tried: int = Field(3, ge=1, description="best grasps tried for a reachable one")
     release_s: float = Field(0.5, gt=0, description="the hand opening, s")
     retreat_m: float = Field(0.1, ge=0, description="tail: retreat along the approach, m")
@@ -344,7 +319,6 @@ def run_sequence(
     object frames `frames` (the same knowledge); OMPL seeded from `seed`."""
     sim.activate(0)
     sim.reset()
-    low, high = sim.limits
     outcomes: list[SkillOutcome] = []
     for index, (skill, frame) in enumerate(zip(skills, frames, strict=True)):
         start = sim.joints()
@@ -353,10 +327,7 @@ def run_sequence(
                          cfg.grasps_tried, skill.margin)  # fmt: skip
         checks, error, steps, success, end = 0, float("nan"), 0, False, "no_grasp"
         if goal.q is not None:
-            valid = _validity(plan_env, cfg.clearance_m)
-            plan = plan_path(low, high, start, goal.q, valid, "rrtconnect", cfg.plan_time_s,
-                             seed=seed * 101 + index, resolution=cfg.resolution,
-                             max_checks=cfg.plan_checks)  # fmt: skip
+            plan = plan_head(plan_env, start, goal.q, cfg, seed * 101 + index, plan_env.objects)
             checks, end = plan.validity_checks, "no_plan"
             if plan.solved:
                 error = sim.track(plan.path, cfg.speed, cfg.k_p, cfg.settle_s)
@@ -367,11 +338,6 @@ def run_sequence(
         outcomes.append(SkillOutcome(skill.task.name, goal.grasp, checks, error, steps, success,
                                      end, start, sim.joints()))  # fmt: skip
     return outcomes
-
-
-def _validity(plan_env: ComposeEnv, clearance: float) -> Callable[[F64], bool]:
-    obstacles = tuple(plan_env.objects)
-    return lambda q: not in_collision(plan_env, q, clearance, obstacles)
 
 
 def _contact_phase(sim: ComposeEnv, actor: Actor) -> tuple[int, bool, str]:

@@ -22,9 +22,12 @@ parallel-jaw gripper (`sim/gripper.py`).
 `reset(seed=..., options=...)`: the object's pose is drawn (+-`jitter_xy`, +-`jitter_yaw`)
 from the environment's generator, the scene rebuilt (bit-for-bit deterministic, as
 Chapter 6's), then the robot placed: `options["start_q"]` (7,) (the head's end, from a
-grasp: `artic.planning`), else home (`robot.start_q`, E2E); `options["grasp"]` true
-closes the gripper there for `grasp_time` while VICES holds the pose (Gamma, Algorithm
-3 line 10). `object_pose` (4, 4) is the episode's object frame; `draw_pose(seed)` gives
+grasp: `artic.planning`), else home (`robot.start_q`, E2E); or `options["track"]`, a
+timed joint reference {"q": (T, 7), "qd": (T, 7), "k_p": 1/s^2} sampled at the physics
+step (a planned head, `head.execute=track`): the arm placed at its first sample and
+driven along it by computed torque with the hand open (`follow`); `options["grasp"]`
+true then closes the gripper for `grasp_time` while VICES holds the pose (Gamma,
+Algorithm 3 line 10). `object_pose` (4, 4) is the episode's object frame; `draw_pose(seed)` gives
 the pose a reset with that seed will use, so a head can solve IK for it first.
 """
 
@@ -39,6 +42,7 @@ from scipy.spatial.transform import Rotation
 
 from artic.control.osc import ArmState, VicesCommand, vices_command, vices_torque
 from artic.control.safety import cap_stiffness, envelope_torque, limit_distance
+from artic.control.tracking import computed_torque
 from artic.objects.categories import build
 from artic.objects.model import ArticulatedObject
 from artic.objects.spec import ObjectSpec, PartsConfig, Pose
@@ -232,7 +236,8 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         self.object_pose = self._draw(self._rng)
         self.client.resetSimulation()
         self._build()
-        start = options.get("start_q")
+        track = options.get("track")
+        start = options.get("start_q") if track is None else track["q"][0]
         q0 = self.rest_q if start is None else np.asarray(start, dtype=np.float64)
         if q0.shape != (N_JOINTS,) or not np.all(np.isfinite(q0)):
             raise ValueError(f"start_q: {N_JOINTS} finite joint angles expected")
@@ -241,11 +246,28 @@ class CipEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         self.gripper.set_opening(self.task.gripper.travel)
         release_motors(self.robot)
         self.rest_q = q0
+        info = self._info(False, False, False, {})
+        if track is not None:
+            info["head_error"] = self.follow(track["q"], track["qd"], float(track["k_p"]))
+            self.rest_q = self._joints()[0]
         if options.get("grasp", False):
             self._close_on_grasp()
         self._steps = self._no_contact = 0
         self._phi = self._potential()
-        return self._observation(), self._info(False, False, False, {})
+        return self._observation(), info
+
+    def follow(self, q_ref: F64, qd_ref: F64, k_p: float) -> float:
+        """Drive the arm along the joint reference q_ref, qd_ref (T, 7), one sample per
+        physics step, by computed torque (gains k_p, 2 sqrt(k_p); `control/tracking.py`)
+        with the gripper's mass in the model; returns the largest joint error at the
+        end, rad (a head's tracking error)."""
+        k_d = 2.0 * float(np.sqrt(k_p))
+        for q, qd in zip(np.asarray(q_ref), np.asarray(qd_ref), strict=True):
+            state = self.arm_state()
+            tau = computed_torque(state.mass, state.bias, state.q, state.qd, q, qd, k_p, k_d)
+            command_torque(self.robot, tau)
+            self.client.stepSimulation()
+        return float(np.abs(self._joints()[0] - np.asarray(q_ref)[-1]).max())
 
     def grasp_here(self) -> NDArray[np.float32]:
         """Gamma where the arm stands (a tracked head's end): the posture target set
