@@ -66,7 +66,7 @@ def test_task_yaml_mirrors_the_registry(task):
 
 def test_the_stage_yamls_hold_the_library_defaults():
     from artic.config.compose import compose, validate
-    from artic.learning.cip_train import CipTrainConfig, TrainCipConfig
+    from artic.learning.cip_train import CipTrainConfig, HeadConfig, TrainCipConfig
     from artic.planning.cip_demos import CipDemosConfig, GraspCandidatesStageConfig
     from artic.planning.cip_expert import ExpertConfig
     from artic.planning.cip_grasps import GraspCandidatesConfig
@@ -77,6 +77,7 @@ def test_the_stage_yamls_hold_the_library_defaults():
     assert demos.expert == ExpertConfig() and demos.demos == 10
     train = validate(TrainCipConfig, compose("train_cip", []))
     assert train.train == CipTrainConfig() and tuple(train.settings) == SETTING_NAMES
+    assert train.head == HeadConfig() and train.head.execute == "teleport"
 
 
 def test_cpu_experiment_is_the_default_and_paper_is_the_thesis_scale():
@@ -180,6 +181,21 @@ def test_interrupted_training_resumes_to_the_uninterrupted_bytes(chain, tmp_path
         assert all(torch.equal(a[k], b[k]) for k in a)
 
 
+def test_a_tracked_head_trains_and_repeats_its_bytes(chain, tmp_path):
+    """head.execute=track through the stage: the CIP run's episodes start from home
+    along a plan (other starts than the teleporting run's, so another curve), and the
+    same command gives the same bytes."""
+    runs = [tmp_path / "track", tmp_path / "again"]
+    for out in runs:
+        code, _, err = chain.train(out, "settings=[cip]", "head.execute=track")
+        assert code == 0, err
+    curves = [(out / "learning_curve.csv").read_bytes() for out in runs]
+    assert curves[0] == curves[1]
+    teleport = (chain.policy / "learning_curve.csv").read_text().splitlines()
+    tracked = curves[0].decode().splitlines()
+    assert tracked[1:] != [row for row in teleport if row.startswith("cip,")]
+
+
 def _bad_cases(chain: Chain) -> dict[str, tuple[list[str], str]]:
     door = ["train-cip", "--task", "door", "debug=tiny"]
     drawer = ["train-cip", "--task", "drawer", "debug=tiny"]
@@ -189,6 +205,7 @@ def _bad_cases(chain: Chain) -> dict[str, tuple[list[str], str]]:
         "unknown setting": ([*drawer, "settings=[e3e]"], "settings.0"),
         "repeated setting": ([*drawer, "settings=[cip,cip]"], "settings"),
         "episodes not whole blocks": ([*drawer, "train.episodes=5"], "episodes"),
+        "unknown head": ([*drawer, "head.execute=fly"], "head.execute"),
         "demos null": ([*drawer, "settings=[e2e_bc]", "demos=null"], "demos"),
         "initiation set null": ([*drawer, "settings=[mv]", "initiation_set=null"],
                                 "initiation_set"),

@@ -96,11 +96,11 @@ class GraspStarts:
         pose = env.draw_pose(seed)
         start = select_start(self.initiation_set, setting, pose, rng, ik, grasp)
         self._grasp = start.grasp if explore else None
-        if start.q is not None and self.head.execute == "track":
-            return self._tracked(env, start.q, seed, explore, start.grasp)
         if start.q is None:
             self._failed(explore, start.grasp)
             return None
+        if self.head.execute == "track":
+            return self._tracked(env, start.q, seed, explore, start.grasp)
         return {"start_q": start.q, "grasp": True}
 
     def _tracked(
@@ -123,7 +123,6 @@ class GraspStarts:
         if explore:
             report_outcome(self.initiation_set, grasp, False)
         self._grasp = None
-        return None
 
     def report(self, success: bool) -> None:
         if self._grasp is not None:
