@@ -79,8 +79,15 @@ def percent_decrease(vices: NDArray[np.float64], rmp: NDArray[np.float64]) -> fl
     return 100.0 * (1.0 - b / a) if a > 0 else math.nan
 
 
-def verdict(table: Sequence[Sequence[Any]], decreases: dict[str, tuple[float, float]]) -> list[str]:
-    """One line per target of issue 20 that the numbers allow to check: PASS or FAIL."""
+def verdict(
+    table: Sequence[Sequence[Any]],
+    decreases: dict[str, tuple[float, float]],
+    medians: dict[tuple[str, str], float] | None = None,
+) -> list[str]:
+    """One line per target of issue 20 that the numbers allow to check: PASS or FAIL
+    (n/a where a controller had no event to compare). `medians`: the median collision
+    force (N) of each (task, controller) over the obstacle episodes (Fig. 6.4)."""
+    medians = medians or {}
     by = {(r[0], r[1]): r for r in table}
     lines = []
     for task in sorted({r[0] for r in table}):
@@ -103,6 +110,15 @@ def verdict(table: Sequence[Sequence[Any]], decreases: dict[str, tuple[float, fl
         if task in ("door", "push"):
             lines.append(f"- {task}: integrated collisions down ({_num(collisions)}%): "
                          f"{_mark(collisions > 0, collisions)}")  # fmt: skip
+        force_v = medians.get((task, "vices"), math.nan)
+        force_r = medians.get((task, "rmp_vices"), math.nan)
+        mark = (
+            ("PASS" if force_r <= force_v else "FAIL")
+            if math.isfinite(force_r) and math.isfinite(force_v)
+            else "n/a (a controller without collisions)"
+        )
+        lines.append(f"- {task}: median collision force {_num(force_r)} N <= "
+                     f"{_num(force_v)} N: {mark}")  # fmt: skip
     return lines
 
 
@@ -149,7 +165,7 @@ def report_markdown(table: Sequence[Sequence[Any]], decreases: dict[str, tuple[f
         med_v = medians.get((task, "vices"), math.nan)
         med_r = medians.get((task, "rmp_vices"), math.nan)
         lines.append(f"| {task} | {_num(med_v)} | {_num(med_r)} |")
-    lines += ["", "Targets (issue 20):", "", *verdict(table, decreases), "", "Inputs:", ""]
+    lines += ["", "Targets (issue 20):", "", *verdict(table, decreases, medians), "", "Inputs:", ""]
     lines += [f"- {task}: {path}" for task, path in sources.items()]
     return "\n".join(lines) + "\n"
 
