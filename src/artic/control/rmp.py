@@ -57,6 +57,14 @@ class CollisionRmpConfig(Strict):
     min_distance: float = Field(
         0.005, gt=0, description="distances are floored here in the metric (contact), m"
     )
+    repulsion: float = Field(
+        0.0,
+        ge=0,
+        description="k_r of a barrier a += k_r exp(-y / l_r), m/s^2, with metric "
+        "w exp(-y / l_r) (RMPflow's collision RMP; ours); 0: Eq. 6.5's damper alone",
+    )
+    repulsion_length: float = Field(0.03, gt=0, description="l_r of the barrier, m")
+    repulsion_metric: float = Field(10.0, ge=0, description="w of the barrier's metric")
 
 
 class JointLimitRmpConfig(Strict):
@@ -162,9 +170,17 @@ def collision_metric(y: F64, yd: F64, cfg: CollisionRmpConfig) -> F64:
 
 def collision_damper(y: F64, yd: F64, cfg: CollisionRmpConfig) -> tuple[F64, F64]:
     """Scalar leaves on distances y (n,) with rates yd (n,): (forces m a (n,), metrics m
-    (n,)) with a = -eta y' (section 6.3.3: damping only, no repulsion)."""
+    (n,)) with a = -eta y' (section 6.3.3: damping only, no repulsion). With
+    `cfg.repulsion` > 0 a barrier joins it: a += k_r exp(-y / l_r), m += w exp(-y / l_r)
+    (y floored at 0), which holds a point off an obstacle it creeps toward, where the
+    damper's metric vanishes with y'."""
     m = collision_metric(y, yd, cfg)
-    return m * (-cfg.eta * np.asarray(yd)), m
+    a = -cfg.eta * np.asarray(yd)
+    if cfg.repulsion > 0:
+        barrier = np.exp(-np.maximum(np.asarray(y, dtype=np.float64), 0.0) / cfg.repulsion_length)
+        a = a + cfg.repulsion * barrier
+        m = m + cfg.repulsion_metric * barrier
+    return m * a, m
 
 
 class Distances(NamedTuple):
