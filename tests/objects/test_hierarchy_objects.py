@@ -19,7 +19,6 @@ from typer.testing import CliRunner
 
 from artic.cli.main import app
 from artic.objects.categories import CATEGORIES
-from artic.objects.model import ArticulatedObject
 from artic.objects.structures import (
     STRUCTURES,
     StructureConfig,
@@ -39,6 +38,7 @@ from artic.objects.tree import (
     sample_configurations,
 )
 from artic.objects.urdf import write_urdf
+from urdf_folder import write_urdf_folder
 
 CATEGORY_DIR = Path(__file__).resolve().parents[2] / "conf" / "common" / "category"
 NAMES = ("storage_furniture", "lamp", "office_chair")
@@ -57,16 +57,6 @@ def configs() -> dict[str, StructureConfig]:
 
 def _spec(configs: dict[str, StructureConfig], name: str, seed: int) -> StructureSpec:
     return sample_structure(configs[name], seed, np.random.default_rng(seed))
-
-
-def _write(obj: ArticulatedObject, folder: Path) -> Path:
-    files = write_urdf(obj)
-    path = folder / f"{obj.name}.urdf"
-    path.write_text(files.urdf)
-    for rel, text in files.meshes.items():
-        (folder / rel).parent.mkdir(parents=True, exist_ok=True)
-        (folder / rel).write_text(text)
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -206,7 +196,8 @@ def test_urdf_loads_in_pybullet_with_the_expected_joints(
     from scipy.spatial.transform import Rotation
 
     obj = build_structure(_spec(configs, name, 0))
-    body = pybullet.loadURDF(str(_write(obj, tmp_path)), useFixedBase=True, physicsClientId=client)
+    urdf = str(write_urdf_folder(obj, tmp_path))
+    body = pybullet.loadURDF(urdf, useFixedBase=True, physicsClientId=client)
     assert pybullet.getNumJoints(body, physicsClientId=client) == len(obj.joints)
     infos = [pybullet.getJointInfo(body, j, physicsClientId=client) for j in range(len(obj.joints))]
     assert [i[1].decode() for i in infos] == [j.name for j in obj.joints]
@@ -230,7 +221,7 @@ def test_urdf_validates_in_yourdfpy_and_urdfdom(
     configs: dict[str, StructureConfig], tmp_path: Path, name: str
 ) -> None:
     obj = build_structure(_spec(configs, name, 5))
-    path = _write(obj, tmp_path)
+    path = write_urdf_folder(obj, tmp_path)
     urdf = yourdfpy.URDF.load(str(path))
     assert urdf.validate()
     assert urdf.actuated_joint_names == [j.name for j in obj.movable_joints]
