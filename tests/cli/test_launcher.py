@@ -1,7 +1,8 @@
 """`artic pipeline NAME launcher=local|slurm` (cli/launcher.py): submitit's local executor
 gives the bytes of launcher=inline, with a sharded stage's shards at once; a killed shard
 is all a resubmission runs; the sbatch scripts of ch3_paper, checked with a fake `sbatch`;
-bad launcher input exits 2 with one line and submits nothing."""
+bad launcher input exits 2 with one line and submits nothing; ch7's at paper scale before its
+inputs exist."""
 
 from __future__ import annotations
 
@@ -209,6 +210,42 @@ def test_ch3_paper_sbatch_scripts(tmp_path, monkeypatch, fake_slurm):
         assert {s["partition"] for _, s in by_name[f"depth-{c}"]} == {"gpu"}
         jobs = read_jobs(tmp_path / f"artifacts/paper/depth/{c}")["submissions"][-1]["jobs"]
         assert [j["id"] for j in jobs] == [f"{array_id}_{i}" for i in range(8)] + [publish_id]
+
+
+def test_ch7_paper_sbatch_scripts(tmp_path, monkeypatch, fake_slurm):
+    """Chapter 7 at paper scale, submitted before any input exists: train-cip's and
+    compose's `shards: chunks` come from the config alone (7 settings x 10 seeds, 50
+    trials), each stage after the jobs that make its inputs."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli("pipeline", "ch7", "experiment=paper", "launcher=slurm")
+    assert code == 0, err
+    by_name: dict[str, list[tuple[str, dict[str, str]]]] = {}
+    for job_id, options in _scripts(fake_slurm).items():
+        by_name.setdefault(options["job-name"].removeprefix("artic-"), []).append((job_id, options))
+    tasks = ("door", "drawer", "slide", "lever")
+    assert sum(len(jobs) for jobs in by_name.values()) == 4 * len(tasks) + 1 + 2
+    published = {}
+    for t in tasks:
+        ((grasps_id, grasps),) = by_name[f"grasps-{t}"]
+        ((demos_id, demos),) = by_name[f"demos-{t}"]
+        (array_id, array), (publish_id, publish) = sorted(by_name[f"train-{t}"])
+        assert "dependency" not in grasps and demos["dependency"] == f"afterok:{grasps_id}"
+        assert array["array"] == "0-69%64" and array["cpus-per-task"] == "1"
+        assert sorted(array["dependency"].removeprefix("afterok:").split(":")) == sorted(
+            [grasps_id, demos_id]
+        )
+        assert publish["dependency"] == f"afterany:{array_id}"
+        published[t] = (grasps_id, publish_id)
+    ((_, evaluate),) = by_name["evaluate"]
+    assert sorted(evaluate["dependency"].removeprefix("afterok:").split(":")) == sorted(
+        p for _, p in published.values()
+    )
+    (compose_id, compose), (_, compose_publish) = sorted(by_name["compose"])
+    assert compose["array"] == "0-49%50"
+    assert sorted(compose["dependency"].removeprefix("afterok:").split(":")) == sorted(
+        [*published["door"], *published["drawer"]]
+    )
+    assert compose_publish["dependency"] == f"afterany:{compose_id}"
 
 
 def test_submitted_stages_are_not_submitted_again_while_up_to_date(

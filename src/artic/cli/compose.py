@@ -44,10 +44,13 @@ def _trial_file(trial: int) -> str:
 
 
 def _plan(cfg: ComposeConfig, inputs: dict[str, Path]) -> Plan:
-    files = [SkillFiles(cfg, task, inputs) for task in cfg.skills]  # bad input before a trial
-    check_compatible([f.task for f in files])
-    if cfg.perceive:
-        perception_models(cfg, [f.task.object.category for f in files])
+    # Bad input before a trial; without the inputs (a launcher counting the chunks of a
+    # stage whose inputs are not made yet) the plan is the config's alone.
+    if inputs:
+        files = [SkillFiles(cfg, task, inputs) for task in cfg.skills]
+        check_compatible([f.task for f in files])
+        if cfg.perceive:
+            perception_models(cfg, [f.task.object.category for f in files])
     return Plan([1] * cfg.trials, "trials")
 
 

@@ -50,11 +50,14 @@ def _run_dir(cfg: TrainCipConfig, chunk: int) -> str:
 
 
 def _plan(cfg: TrainCipConfig, inputs: dict[str, Path]) -> Plan:
-    if "initiation_set" in inputs:  # bad input before any run
+    # Bad input before any run; without the inputs (a launcher counting the chunks of a
+    # stage whose inputs are not made yet) the plan is the config's alone.
+    if "initiation_set" in inputs:
         read_initiation_set(inputs["initiation_set"], cfg.task)
-    for setting in cfg.settings:
-        if SETTINGS[setting].demos:
-            read_demonstrations(inputs["demos"], cfg.task, SETTINGS[setting].grasp == "home")
+    if "demos" in inputs:
+        for setting in cfg.settings:
+            if SETTINGS[setting].demos:
+                read_demonstrations(inputs["demos"], cfg.task, SETTINGS[setting].grasp == "home")
     return Plan([cfg.train.episodes] * (len(cfg.settings) * cfg.seeds), "episodes")
 
 
