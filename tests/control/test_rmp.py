@@ -15,9 +15,12 @@ from artic.control.osc import (
 )
 from artic.control.rmp import (
     CollisionRmpConfig,
+    ControlPoints,
     JointLimitRmpConfig,
+    Plane,
     Rmp,
     RmpConfig,
+    Sphere,
     collision_damper,
     collision_metric,
     combine,
@@ -72,7 +75,7 @@ def test_a_zero_metric_adds_nothing_and_a_singular_metric_gives_no_nan():
 
 
 def test_collision_metric_is_zero_receding_and_grows_approaching():
-    cfg = CollisionRmpConfig()
+    cfg = CollisionRmpConfig(repulsion=0.0)  # Eq. 6.5's damper alone
     y = np.array([0.2, 0.2, 0.1, 0.05])
     yd = np.array([0.1, -0.1, -0.1, -0.1])
     m = collision_metric(y, yd, cfg)
@@ -84,8 +87,8 @@ def test_collision_metric_is_zero_receding_and_grows_approaching():
 
 def test_a_point_attracted_through_a_sphere_stops_short_of_its_surface():
     """A point in R^3 attracted to a goal behind a sphere (k_p = 100, metric I), with the
-    Eq. 6.5 damper on its distance to the sphere: it never reaches the surface."""
-    cfg = CollisionRmpConfig()
+    Eq. 6.5 damper (alone) on its distance to the sphere: it never reaches the surface."""
+    cfg = CollisionRmpConfig(repulsion=0.0)
     centre, radius = np.zeros(3), 0.05
     x, v, goal, dt = np.array([-0.3, 0.0, 0.0]), np.zeros(3), np.array([0.3, 0, 0]), 1e-3
     closest = np.inf
@@ -127,16 +130,44 @@ def _closest_approach(cfg: CollisionRmpConfig, kp: float, seconds: float) -> flo
 def test_a_barrier_holds_off_what_the_damper_alone_lets_creep_onto_the_surface():
     """Pressed toward a sphere for 40 s (k_p 300), the damper alone (Eq. 6.5, metric 0
     at rest) lets the point creep into it (measured: 1.6 cm deep); with the barrier
-    (repulsion > 0) it rests 3 cm off; the barrier adds nothing when switched off."""
-    damper = CollisionRmpConfig()
-    barrier = CollisionRmpConfig(repulsion=20.0)
+    (the default, repulsion 20) it rests 3 cm off; the barrier adds nothing when switched
+    off."""
+    damper = CollisionRmpConfig(repulsion=0.0)
+    barrier = CollisionRmpConfig()
     assert _closest_approach(damper, 300.0, 40.0) < 0.0
     assert _closest_approach(barrier, 300.0, 40.0) > 0.02
     y, yd = np.array([0.01, 0.2]), np.array([0.0, 0.0])
-    f, m = collision_damper(y, yd, damper)
-    assert np.all(f == 0) and np.all(m == 0)
+    for f, m in (collision_damper(y, yd, damper), collision_damper(y, yd, barrier, False)):
+        assert np.all(f == 0) and np.all(m == 0)
     f, m = collision_damper(y, yd, barrier)
     assert np.all(f > 0) and np.all(m > 0) and f[0] > f[1]
+
+
+def test_the_barrier_acts_on_spheres_and_on_planes_only_when_asked():
+    """A control point at rest 1 cm from a plane or a sphere: the sphere's barrier changes
+    q''; the plane's (the table, the door panel) only with `repulsion_planes`."""
+    rng = np.random.default_rng(7)
+    state = _random_state(rng)
+    vices = VicesConfig()
+    cmd = vices_command(np.zeros(12), state.ee_position, state.ee_rotation, vices)
+    limits = (np.full(7, -3.0), np.full(7, 3.0))
+    jac = rng.normal(size=(1, 3, 7))
+    points = ControlPoints(
+        positions=np.array([[0.0, 0.0, 0.06]]),
+        velocities=np.zeros((1, 3)),
+        jacobians=jac,
+        jdot_qdot=np.zeros((1, 3)),
+        radii=np.array([0.05]),
+    )
+    plane, sphere = Plane(np.array([0.0, 0.0, 1.0]), 0.0), Sphere(np.array([0.0, 0.0, 0.16]), 0.05)
+
+    def qdd(obstacle, **collision):
+        cfg = RmpConfig(collision=CollisionRmpConfig(**collision))
+        return rmp_vices_acceleration(state, cmd, state.q, limits, points, [obstacle], vices, cfg)
+
+    assert np.array_equal(qdd(plane), qdd(plane, repulsion=0.0))
+    assert not np.allclose(qdd(plane, repulsion_planes=True), qdd(plane, repulsion=0.0))
+    assert not np.allclose(qdd(sphere), qdd(sphere, repulsion=0.0))
 
 
 def _random_state(rng, at_rest=True):

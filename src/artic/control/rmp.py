@@ -17,7 +17,9 @@ Leaves of the tree (`rmp_vices_acceleration`):
 - one damper per (control point, obstacle) on the distance y to a plane or a sphere
   (minus the point's radius): metric m = s max(-y', 0)^2 / y^4 (Eq. 6.5 with the sign
   fixed: the thesis prints max(y', 0), which switches on while the distance grows) and
-  a = -eta y': no repulsion, only the approach is damped (section 6.3.3);
+  a = -eta y': no repulsion, only the approach is damped (section 6.3.3); on the
+  spheres (not on the task's planes, unless `repulsion_planes`) a barrier after
+  RMPflow's collision RMP joins it (`repulsion` k_r, ours; 0: Eq. 6.5 alone);
 - joint-limit leaves on each joint's distance to its lower and upper limit (after Cheng
   et al. 2021's joint-limit RMP, our constants): m = lambda exp(-x / l), a = k_p exp(-x /
   l) - k_d x';
@@ -58,13 +60,18 @@ class CollisionRmpConfig(Strict):
         0.005, gt=0, description="distances are floored here in the metric (contact), m"
     )
     repulsion: float = Field(
-        0.0,
+        20.0,
         ge=0,
         description="k_r of a barrier a += k_r exp(-y / l_r), m/s^2, with metric "
         "w exp(-y / l_r) (RMPflow's collision RMP; ours); 0: Eq. 6.5's damper alone",
     )
     repulsion_length: float = Field(0.03, gt=0, description="l_r of the barrier, m")
     repulsion_metric: float = Field(10.0, ge=0, description="w of the barrier's metric")
+    repulsion_planes: bool = Field(
+        False,
+        description="the barrier also on the planes (the table, the door panel: surfaces "
+        "the task works at); false: on the spheres only",
+    )
 
 
 class JointLimitRmpConfig(Strict):
@@ -168,15 +175,17 @@ def collision_metric(y: F64, yd: F64, cfg: CollisionRmpConfig) -> F64:
     return cfg.metric_scale * approach**2 / y**4
 
 
-def collision_damper(y: F64, yd: F64, cfg: CollisionRmpConfig) -> tuple[F64, F64]:
+def collision_damper(
+    y: F64, yd: F64, cfg: CollisionRmpConfig, barrier: bool = True
+) -> tuple[F64, F64]:
     """Scalar leaves on distances y (n,) with rates yd (n,): (forces m a (n,), metrics m
-    (n,)) with a = -eta y' (section 6.3.3: damping only, no repulsion). With
-    `cfg.repulsion` > 0 a barrier joins it: a += k_r exp(-y / l_r), m += w exp(-y / l_r)
-    (y floored at 0), which holds a point off an obstacle it creeps toward, where the
+    (n,)) with a = -eta y' (section 6.3.3: damping only, no repulsion). With `barrier`
+    and `cfg.repulsion` > 0 a barrier joins it: a += k_r exp(-y / l_r), m += w exp(-y /
+    l_r) (y floored at 0), which holds a point off an obstacle it creeps toward, where the
     damper's metric vanishes with y'."""
     m = collision_metric(y, yd, cfg)
     a = -cfg.eta * np.asarray(yd)
-    if cfg.repulsion > 0:
+    if barrier and cfg.repulsion > 0:
         barrier = np.exp(-np.maximum(np.asarray(y, dtype=np.float64), 0.0) / cfg.repulsion_length)
         a = a + cfg.repulsion * barrier
         m = m + cfg.repulsion_metric * barrier
@@ -214,10 +223,13 @@ def sphere_distances(points: ControlPoints, sphere: Sphere) -> Distances:
     return Distances(norm - sphere.radius - points.radii, yd, u, curvature)
 
 
-def collision_rmp(points: ControlPoints, distances: Distances, cfg: CollisionRmpConfig) -> Rmp:
-    """The dampers on every control point for one obstacle, pulled back to joint space
-    (7,): J_y = u^T J_x, J_y' q' = u^T J_x' q' + curvature."""
-    f, m = collision_damper(distances.y, distances.yd, cfg)
+def collision_rmp(
+    points: ControlPoints, distances: Distances, cfg: CollisionRmpConfig, barrier: bool = True
+) -> Rmp:
+    """The dampers (and with `barrier` the barrier) on every control point for one
+    obstacle, pulled back to joint space (7,): J_y = u^T J_x, J_y' q' = u^T J_x' q' +
+    curvature."""
+    f, m = collision_damper(distances.y, distances.yd, cfg, barrier)
     jy = np.einsum("pi,pij->pj", distances.gradient, points.jacobians)  # (P, 7)
     jdot = np.einsum("pi,pi->p", distances.gradient, points.jdot_qdot) + distances.curvature
     force = jy.T @ (f - m * jdot)
@@ -277,12 +289,12 @@ def rmp_vices_acceleration(
         leaves.append(joint_limit_rmp(state.q, state.qd, *limits, cfg.joint_limit))
     if points is not None and len(points.radii) and cfg.collision.metric_scale > 0:
         for obstacle in obstacles:
+            plane = isinstance(obstacle, Plane)
             distances = (
-                plane_distances(points, obstacle)
-                if isinstance(obstacle, Plane)
-                else sphere_distances(points, obstacle)
+                plane_distances(points, obstacle) if plane else sphere_distances(points, obstacle)
             )
-            leaves.append(collision_rmp(points, distances, cfg.collision))
+            barrier = not plane or cfg.collision.repulsion_planes
+            leaves.append(collision_rmp(points, distances, cfg.collision, barrier))
     qdd = resolve(combine(leaves), cfg.rcond)
     null = np.eye(len(state.q)) - jac.T @ inverse(jac @ jac.T) @ jac  # I - J^+ J
     return qdd + null @ posture_acceleration(state, rest, vices)
