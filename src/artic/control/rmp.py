@@ -186,9 +186,9 @@ def collision_damper(
     m = collision_metric(y, yd, cfg)
     a = -cfg.eta * np.asarray(yd)
     if barrier and cfg.repulsion > 0:
-        barrier = np.exp(-np.maximum(np.asarray(y, dtype=np.float64), 0.0) / cfg.repulsion_length)
-        a = a + cfg.repulsion * barrier
-        m = m + cfg.repulsion_metric * barrier
+        decay = np.exp(-np.maximum(np.asarray(y, dtype=np.float64), 0.0) / cfg.repulsion_length)
+        a = a + cfg.repulsion * decay
+        m = m + cfg.repulsion_metric * decay
     return m * a, m
 
 
@@ -289,11 +289,13 @@ def rmp_vices_acceleration(
         leaves.append(joint_limit_rmp(state.q, state.qd, *limits, cfg.joint_limit))
     if points is not None and len(points.radii) and cfg.collision.metric_scale > 0:
         for obstacle in obstacles:
-            plane = isinstance(obstacle, Plane)
-            distances = (
-                plane_distances(points, obstacle) if plane else sphere_distances(points, obstacle)
-            )
-            barrier = not plane or cfg.collision.repulsion_planes
+            if isinstance(obstacle, Plane):
+                distances, barrier = (
+                    plane_distances(points, obstacle),
+                    cfg.collision.repulsion_planes,
+                )
+            else:
+                distances, barrier = sphere_distances(points, obstacle), True
             leaves.append(collision_rmp(points, distances, cfg.collision, barrier))
     qdd = resolve(combine(leaves), cfg.rcond)
     null = np.eye(len(state.q)) - jac.T @ inverse(jac @ jac.T) @ jac  # I - J^+ J
