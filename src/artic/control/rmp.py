@@ -66,7 +66,7 @@ class CollisionRmpConfig(Strict):
         "w exp(-y / l_r) (RMPflow's collision RMP; ours); 0: Eq. 6.5's damper alone",
     )
     repulsion_length: float = Field(0.03, gt=0, description="l_r of the barrier, m")
-    repulsion_metric: float = Field(10.0, ge=0, description="w of the barrier's metric")
+    repulsion_metric: float = Field(3.0, ge=0, description="w of the barrier's metric")
     repulsion_planes: bool = Field(
         False,
         description="the barrier also on the planes (the table, the door panel: surfaces "
