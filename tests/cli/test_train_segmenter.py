@@ -163,3 +163,27 @@ def test_votes_head_trains_chooses_its_radius_and_segments(tiny: TinyScans, tmp_
     result = segment(loaded.model, cloud.points, loaded.inference)
     assert result.part_id.shape == (len(cloud.points),)
     assert len(result.part_confidence) == result.part_id.max() + 1
+
+
+def test_votes_head_static_part_auto_and_mode_bandwidth_chosen(
+    tiny: TinyScans, tmp_path: Path
+) -> None:
+    """`model.static_part=auto` on storage furniture (one static part per cloud) trains a
+    "one" model; the bandwidth is chosen with the radii, every setting scored once, the
+    chosen one the best, and the model card says so."""
+    out = tmp_path / "votes"
+    code, _, err = run_cli(
+        *ARGS, "model.head=votes", "model.static_part=auto", "train.cluster_radii=[0.05,0.2]",
+        "train.mode_bandwidths=[0,0.05]", f"scans={tiny.scans}", f"out={out}",
+    )  # fmt: skip
+    assert code == 0, err
+    loaded = load_segmenter(out / "model.pt", "storage_furniture")
+    assert loaded.model.config.static_part == "one"
+    scores = loaded.meta["cluster_radius_val_map"]  # "r_static,...;h=bandwidth": mAP
+    assert {k.split(";")[1] for k in scores} == {"h=0", "h=0.05"}
+    # the static radius is not searched when static points are one part
+    assert len(scores) <= 2 * (2 + 3 * 2)
+    radii = ",".join(f"{r:g}" for r in loaded.inference.cluster_radius)
+    chosen = f"{radii};h={loaded.inference.mode_bandwidth:g}"
+    assert scores[chosen] == max(scores.values())
+    assert "every static point one part" in (out / "model_card.md").read_text()

@@ -16,6 +16,7 @@ from artic.evaluation.segmentation import (
     object_detections,
 )
 from artic.hierarchy.cloud_cache import cloud_features
+from artic.hierarchy.fit_segmenter import static_part_of
 from artic.hierarchy.models import load_segmenter, save_segmenter
 from artic.hierarchy.segmentation import (
     InferenceConfig,
@@ -24,7 +25,14 @@ from artic.hierarchy.segmentation import (
     segment,
     train_step,
 )
-from artic.hierarchy.votes import VoteOutput, cluster_votes, part_offsets, vote_loss
+from artic.hierarchy.votes import (
+    VoteOutput,
+    cluster_votes,
+    part_offsets,
+    seek_modes,
+    sought,
+    vote_loss,
+)
 
 
 def _one_hot_prob(motion: np.ndarray) -> np.ndarray:
@@ -149,3 +157,65 @@ def test_votes_net_overfits_one_cloud_of_three_boxes_and_round_trips(tmp_path) -
         np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="n_points"):
         segment(model, points, InferenceConfig(n_points=100), features.normals)
+
+
+def test_static_one_part_ignores_the_static_offsets() -> None:
+    """`model.static_part=one`: static points are one part however their votes scatter,
+    and their offsets cost nothing; the moving points are clustered and supervised as
+    before."""
+    points, part, motion = three_boxes(300, 3)
+    xyz = torch.from_numpy(points)[None]
+    ids, types = torch.from_numpy(part)[None], torch.from_numpy(motion)[None]
+    offsets, _ = part_offsets(xyz, ids)
+    static = types == 0
+    assert static.any() and (~static).any()
+    noise = torch.randn(offsets.shape, generator=torch.Generator().manual_seed(0))
+    scattered = offsets + static[..., None] * noise
+    logits = torch.from_numpy(_one_hot_prob(motion))[None] * 100.0
+    output = VoteOutput(logits, scattered, xyz)
+    assert float(vote_loss(output, ids, types).offset_error) > 0.1
+    ignored = vote_loss(output, ids, types, vote_static=False)
+    assert float(ignored.offset_error) < 1e-6 and float(ignored.total) < 1e-5
+    shifted = (xyz + scattered)[0].numpy()
+    prob = _one_hot_prob(motion)
+    split = cluster_votes(shifted, prob, radius=0.02, min_size=1)
+    one = cluster_votes(shifted, prob, radius=0.02, min_size=1, one_part=(0,))
+    assert len(split.confidence) > len(one.confidence) == 3
+    np.testing.assert_allclose(instance_iou(one.label, part).max(axis=0), 1.0)
+    np.testing.assert_allclose(one.confidence, 1.0)
+
+
+def test_static_part_auto_follows_the_training_clouds() -> None:
+    """One static part in every cloud (the body of a storage-furniture object): "one";
+    a cloud with two static parts (an office chair's base and fixed seat): "votes"."""
+    part = np.array([[0, 0, 1, 2, -1], [0, 1, 1, 2, 2]])
+    motion = np.array([[0, 0, 1, 2, -1], [1, 0, 0, 2, 2]])
+    assert static_part_of(part, motion) == "one"
+    motion[1] = [0, 0, 0, 2, 2]  # parts 0 and 1 of the second cloud are both static
+    assert static_part_of(part, motion) == "votes"
+    assert static_part_of(part, np.ones_like(motion)) == "one"  # no static part at all
+
+
+def test_mode_seeking_separates_touching_scatters_that_the_flood_fill_chains() -> None:
+    """Two parts' votes scattered about centres 0.2 apart touch through a few stray votes:
+    the flood fill at 0.05 chains them into one part; moved to their modes first, they
+    are two, and `sought` gives the same parts at bandwidth 0."""
+    rng = np.random.default_rng(4)
+    a = rng.normal(0.0, 0.03, (60, 3))
+    b = rng.normal(0.0, 0.03, (60, 3)) + np.array([0.2, 0.0, 0.0])
+    bridge = np.linspace([0.03, 0.0, 0.0], [0.17, 0.0, 0.0], 6)
+    shifted = np.concatenate([a, bridge, b])
+    truth = np.array([0] * 63 + [1] * 63)
+    prob = _one_hot_prob(np.full(len(shifted), 1))
+    chained = cluster_votes(shifted, prob, radius=0.05, min_size=5)
+    assert len(chained.confidence) == 1
+    moved = seek_modes(shifted, 0.05)
+    assert np.abs(moved[:60].mean(0)).max() < 0.01  # a's votes at a's centre
+    parts = cluster_votes(shifted, prob, radius=0.05, min_size=5, bandwidth=0.05)
+    assert len(parts.confidence) == 2
+    np.testing.assert_allclose(instance_iou(parts.label, truth).max(axis=0), 1.0)
+    xyz = torch.zeros(1, len(shifted), 3)
+    output = VoteOutput(torch.from_numpy(prob)[None], torch.from_numpy(shifted).float()[None], xyz)
+    again = cluster_votes((sought(output, 0.05).offsets[0]).numpy(), prob, radius=0.05, min_size=5)
+    np.testing.assert_array_equal(again.label, parts.label)
+    assert sought(output, 0.0) is output

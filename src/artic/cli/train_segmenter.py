@@ -95,6 +95,7 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
         choose_cluster_radius,
         fit_segmenter,
         score_segmenter,
+        static_part_of,
         training_objects,
     )
     from artic.hierarchy.models import save_segmenter
@@ -111,8 +112,12 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     val, skipped_val = _cached_data(ds, split.val, cfg, resume / "val.npz")
     log.info("train-segmenter: %d training and %d validation clouds", len(train), len(val))
 
+    static_part = cfg.model.static_part
+    if static_part == "auto":
+        static_part = static_part_of(train.part_id, train.motion_type)
+        log.info("train-segmenter: model.static_part=auto -> %s", static_part)
     torch.manual_seed(cfg.seed)
-    model = PartSegmentationNet(cfg.model.network()).to(device)
+    model = PartSegmentationNet(cfg.model.network(static_part)).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=t.lr, weight_decay=t.weight_decay)
     parts = {"model": model, "optimizer": optimizer}
     saved, save = torch_checkpoint(resume / "last.pt", map_location=device)
@@ -127,7 +132,9 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     )  # fmt: skip
     assert state.best_weights is not None
     model.load_state_dict(state.best_weights)
-    inference, radius_scores = choose_cluster_radius(model, val, cfg.inference, t.cluster_radii)
+    inference, radius_scores = choose_cluster_radius(
+        model, val, cfg.inference, t.cluster_radii, t.mode_bandwidths
+    )
     scores = score_segmenter(model, val, inference)
     meta: dict[str, Any] = {
         "data": {"path": str(inputs["scans"]), "content_hash": ds.manifest.content_hash},
@@ -176,6 +183,7 @@ def _finalize(
         else "per-point offsets to the part centre, parts by clustering (votes head, "
         f"radii {info['inference']['cluster_radius']} per motion type, chosen on validation "
         "clouds)"
+        + (", every static point one part" if info["network"].get("static_part") == "one" else "")
     )
     about = ("PointNet++ instance segmenter of thesis section 4.3 (after PartNet): "
              f"{head}, motion-type branch; width x{m.width}, {m.norm} norm, "

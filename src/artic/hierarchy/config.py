@@ -44,9 +44,16 @@ class SegmenterModelConfig(Strict):
         "masks", description="masks: section 4.3's N masks; votes: offsets + clustering"
     )
     normals: bool = Field(False, description="per-point normals as input features")
+    static_part: Literal["votes", "one", "auto"] = Field(
+        "votes",
+        description="votes head: 'one' makes every static point one part (a category whose "
+        "static points are one rigid body, e.g. storage furniture) and drops their offset "
+        "loss; 'auto': 'one' when every training cloud has at most one static part",
+    )
 
-    def network(self) -> SegmentationConfig:
-        """The architecture these settings describe."""
+    def network(self, static_part: Literal["votes", "one"] | None = None) -> SegmentationConfig:
+        """The architecture these settings describe; `static_part` resolves "auto" (which
+        the training data decides: `fit_segmenter.static_part_of`), as "votes" if None."""
         import dataclasses
 
         from artic.hierarchy.segmentation import SegmentationConfig
@@ -66,7 +73,15 @@ class SegmenterModelConfig(Strict):
             norm=self.norm,
             in_channels=3 if self.normals else 0,
         )
-        return dataclasses.replace(base, backbone=backbone, head=self.head, normals=self.normals)
+        if static_part is None:
+            static_part = "votes" if self.static_part == "auto" else self.static_part
+        return dataclasses.replace(
+            base,
+            backbone=backbone,
+            head=self.head,
+            normals=self.normals,
+            static_part=static_part,
+        )
 
 
 class InferenceConfig(Strict):
@@ -81,6 +96,12 @@ class InferenceConfig(Strict):
         (0.12, 0.12, 0.12, 0.12),
         description="votes head: flood-fill radius of the shifted points, cloud radii, per "
         "motion type (static, rotating, translating, both); one number: all four",
+    )
+    mode_bandwidth: float = Field(
+        0.0,
+        ge=0,
+        description="votes head: Gaussian mean-shift bandwidth (cloud radii) the shifted points "
+        "climb to their modes with before the flood fill; 0: none",
     )
 
     @field_validator("cluster_radius", mode="before")
@@ -120,6 +141,11 @@ class SegmenterTrainConfig(TrainConfig):
         description="votes head: radii tried on the validation clouds after training, first "
         "one for all motion types, then each type's in turn; the best mAP@0.5's are saved "
         "with the model (empty: keep inference.cluster_radius)",
+    )
+    mode_bandwidths: tuple[float, ...] = Field(
+        (),
+        description="votes head: mean-shift bandwidths tried with the radii (a radius search "
+        "for each), the best mAP's kept (empty: keep inference.mode_bandwidth)",
     )
 
 

@@ -19,10 +19,10 @@ import dataclasses
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 import torch
@@ -43,10 +43,13 @@ from artic.hierarchy.segmentation import (
     PartSegmentationNet,
     SegmentationBatch,
     SegmentationConfig,
+    SegmentationOutput,
+    forward,
     run_batch,
     segment,
     train_step,
 )
+from artic.hierarchy.votes import STATIC, VoteOutput, sought
 from artic.learning import trainer
 from artic.learning.fit_state import FitState
 
@@ -88,6 +91,17 @@ def prepare_cloud(
         np.asarray(part_id, dtype=np.int64)[index],
         np.asarray(motion_type, dtype=np.int64)[index],
     )
+
+
+def static_part_of(
+    part_id: NDArray[np.int64], motion_type: NDArray[np.int64]
+) -> Literal["votes", "one"]:
+    """`model.static_part=auto`: "one" when no cloud (C, S) has two parts of the static
+    motion type (their static points are one rigid body), else "votes"."""
+    static = (motion_type == STATIC) & (part_id >= 0)
+    cloud = np.nonzero(static)[0]
+    pairs = np.unique(np.stack([cloud, part_id[static]]), axis=1)
+    return "votes" if (np.bincount(pairs[0]) > 1).any() else "one"
 
 
 @dataclass(frozen=True)
@@ -289,18 +303,37 @@ class SegmentationScores(NamedTuple):
     clouds: int
 
 
+def network_outputs(
+    model: PartSegmentationNet, data: SegmentationData
+) -> list[SegmentationOutput | VoteOutput]:
+    """The network's output on every prepared cloud (with its cached features), to score
+    several inference settings without running it again."""
+    device = next(model.parameters()).device
+    outputs = []
+    for i in range(len(data)):
+        normals = None if data.normals is None else torch.from_numpy(data.normals[i])[None]
+        index = None if data.neighbourhoods is None else data.neighbourhoods[i].to(device)
+        outputs.append(forward(model, data.points[i], normals, index))
+    return outputs
+
+
 def score_segmenter(
-    model: PartSegmentationNet, data: SegmentationData, inference: InferenceConfig
+    model: PartSegmentationNet,
+    data: SegmentationData,
+    inference: InferenceConfig,
+    outputs: Sequence[SegmentationOutput | VoteOutput] | None = None,
 ) -> SegmentationScores:
     """Run `segment` on every prepared cloud (already at the network's input size, so no
-    further downsampling; with its cached normals and neighbourhoods when `data` has them)
-    and score it against the ground truth (PartNet protocol)."""
+    further downsampling; with its cached normals and neighbourhoods when `data` has them,
+    or from the network's `outputs` on them) and score it against the ground truth
+    (PartNet protocol)."""
     detections: dict[bool, list[Any]] = {False: [], True: []}
     accuracy = []
     for i in range(len(data)):
         normals = None if data.normals is None else data.normals[i]
         index = None if data.neighbourhoods is None else data.neighbourhoods[i]
-        result = segment(model, data.points[i], inference, normals, index)
+        output = None if outputs is None else outputs[i]
+        result = segment(model, data.points[i], inference, normals, index, output)
         detections[bool(data.noisy[i])].append(
             object_detections(result.part_id, result.part_confidence, data.part_id[i])
         )
@@ -318,29 +351,43 @@ def choose_cluster_radius(
     data: SegmentationData,
     inference: InferenceConfig,
     radii: tuple[float, ...],
+    bandwidths: tuple[float, ...] = (),
 ) -> tuple[InferenceConfig, dict[str, float]]:
-    """Votes head: the `inference` whose per-motion-type cluster_radius scores the best
-    mean of clean and noisy mAP@0.5 on `data`: first one radius of `radii` for every type,
-    then each type's radius in turn with the others kept (coordinate search; ties: the
-    smaller radius), and every tried setting's score, keyed by its radii. Masks head or no
-    radii: `inference` unchanged, no scores."""
+    """Votes head: the `inference` whose per-motion-type cluster_radius (and mode_bandwidth)
+    scores the best mean of clean and noisy mAP@0.5 on `data`. For each bandwidth of
+    `bandwidths` (none given: inference.mode_bandwidth): first one radius of `radii` for
+    every type, then each type's radius in turn with the others kept (coordinate search;
+    ties: the smaller radius); the best bandwidth's (ties: the first). Returns it and every
+    tried setting's score, keyed by its radii (and "h=<bandwidth>" where bandwidths were
+    given). Masks head or no radii: `inference` unchanged, no scores. The network runs once
+    per cloud."""
     if model.config.head != "votes" or not radii:
         return inference, {}
+    outputs = network_outputs(model, data)
+    one_part = (STATIC,) if model.config.static_part == "one" else ()
     scores: dict[str, float] = {}
+    moved: list[SegmentationOutput | VoteOutput] = []
 
-    def score(setting: tuple[float, ...]) -> float:
-        key = ",".join(f"{r:g}" for r in setting)
+    def score(setting: tuple[float, ...], h: float) -> float:
+        key = ",".join(f"{r:g}" for r in setting) + (f";h={h:g}" if bandwidths else "")
         if key not in scores:
-            update = {"cluster_radius": setting}
-            s = score_segmenter(model, data, inference.model_copy(update=update))
+            # the points were moved to their modes once for all radii (`votes.sought`)
+            update = {"cluster_radius": setting, "mode_bandwidth": 0.0}
+            s = score_segmenter(model, data, inference.model_copy(update=update), moved)
             scores[key] = float(np.nanmean([s.map_clean, s.map_noisy]))
         return scores[key]
 
-    best: tuple[float, ...] = max(((r,) * 4 for r in radii), key=score)
-    for t in range(4):
-        candidates = [best, *((*best[:t], r, *best[t + 1 :]) for r in radii)]
-        best = max(candidates, key=lambda s, t=t: (score(s), -s[t]))  # type: ignore[misc]
-    return inference.model_copy(update={"cluster_radius": best}), scores
+    chosen: list[tuple[float, tuple[float, ...], float]] = []
+    for h in bandwidths or (inference.mode_bandwidth,):
+        moved[:] = [sought(o, h, one_part) if isinstance(o, VoteOutput) else o for o in outputs]
+        best: tuple[float, ...] = max(((r,) * 4 for r in radii), key=lambda s: score(s, h))
+        for t in (t for t in range(4) if t not in one_part):
+            candidates = [best, *((*best[:t], r, *best[t + 1 :]) for r in radii)]
+            best = max(candidates, key=lambda s, t=t: (score(s, h), -s[t]))  # type: ignore[misc]
+        chosen.append((score(best, h), best, h))
+    _, radius, bandwidth = max(chosen, key=lambda c: c[0])
+    update = {"cluster_radius": radius, "mode_bandwidth": bandwidth}
+    return inference.model_copy(update=update), scores
 
 
 def training_objects(ds: ScanDataset, data: CloudDataConfig) -> ObjectSplit:

@@ -44,11 +44,12 @@ from artic.hierarchy.pointnet2 import (
     SharedMLP,
     farthest_point_indices,
 )
-from artic.hierarchy.votes import VoteLosses, VoteOutput, vote_loss, vote_parts
+from artic.hierarchy.votes import STATIC, VoteLosses, VoteOutput, vote_loss, vote_parts
 from artic.objects.tree import MOTION_TYPES
 
 N_MASKS = 24
 Head = Literal["masks", "votes"]
+StaticPart = Literal["votes", "one"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,7 @@ class SegmentationConfig:
     normalize: bool = True  # centre each cloud on its mean and scale it into the unit sphere
     head: Head = "masks"  # masks: section 4.3's N masks + confidences; votes: offsets
     normals: bool = False  # per-point normals as input features (backbone.in_channels 3)
+    static_part: StaticPart = "votes"  # votes head: "one": every static point is one part
 
     def scaled(self, factor: float) -> SegmentationConfig:
         """Every width times `factor` (for tests and small machines)."""
@@ -256,11 +258,13 @@ def head_loss(
     part_id: Tensor,
     motion_type: Tensor,
     weights: LossWeights | None = None,
+    vote_static: bool = True,
 ) -> StepLosses:
-    """`segmentation_loss` (masks head; `weights`) or `votes.vote_loss` (votes head)."""
+    """`segmentation_loss` (masks head; `weights`) or `votes.vote_loss` (votes head;
+    `vote_static` False: no offset loss on static points, `static_part` "one")."""
     losses: SegmentationLosses | VoteLosses
     if isinstance(output, VoteOutput):
-        losses = vote_loss(output, part_id, motion_type)
+        losses = vote_loss(output, part_id, motion_type, vote_static)
     else:
         losses = segmentation_loss(output, part_id, motion_type, weights)
     terms = {k: float(v.detach()) for k, v in losses._asdict().items()}
@@ -283,7 +287,10 @@ def run_batch(
     normals = None if batch.normals is None else batch.normals.to(device)
     index = None if batch.neighbourhoods is None else batch.neighbourhoods.to(device)
     output = model(batch.points.to(device), normals, index)
-    return head_loss(output, batch.part_id.to(device), batch.motion_type.to(device), weights)
+    vote_static = model.config.static_part == "votes"
+    return head_loss(
+        output, batch.part_id.to(device), batch.motion_type.to(device), weights, vote_static
+    )
 
 
 def train_step(
@@ -314,13 +321,15 @@ def segment(
     config: InferenceConfig | None = None,
     normals: NDArray[np.float32] | None = None,
     neighbourhoods: BackboneIndex | None = None,
+    output: SegmentationOutput | VoteOutput | None = None,
 ) -> SegmentationResult:
     """Segment one cloud into parts with motion types: points (N, 3), metres.
 
     normals (N, 3) and neighbourhoods (`cloud_cache.cloud_features`): a cloud already at
     the network's input size (a prepared training cloud) whose features were computed
     once; without them they are computed here. ValueError for a cloud larger than
-    `n_points` (its samples would not be the points those features belong to).
+    `n_points` (its samples would not be the points those features belong to). output: the
+    network's output on such a cloud, computed before (`forward`), to try other settings.
 
     1. Downsample to `n_points` by farthest-point sampling (deterministic, from point 0).
     2. Run the network (with the samples' normals if it reads them).
@@ -328,7 +337,8 @@ def segment(
        "other", smaller than max(min_points, min_fraction * S) or less confident than
        `min_confidence` are dropped; their points move to their most probable kept mask
        (the largest mask is always kept). Votes head: clusters of the shifted points
-       within `cluster_radius`, the same minimum size (`votes.cluster_votes`).
+       within `cluster_radius`, the same minimum size (`votes.cluster_votes`); with
+       `static_part` "one" the static points are one part.
     4. Every input point takes the labels of its nearest sampled point (cKDTree).
 
     Train on clouds prepared the same way (`farthest_point_indices(scan, n_points)`).
@@ -348,21 +358,25 @@ def segment(
         if len(pts) > config.n_points
         else np.arange(len(pts))
     )
-    if len(sample) < len(pts) and (normals is not None or neighbourhoods is not None):
+    precomputed = (normals, neighbourhoods, output)
+    if len(sample) < len(pts) and any(x is not None for x in precomputed):
         raise ValueError("precomputed features need a cloud of at most n_points points")
-    device = next(model.parameters()).device
-    if model.config.normals and normals is None:
-        from artic.hierarchy.normals import estimate_normals
+    out = output
+    if out is None:
+        device = next(model.parameters()).device
+        if model.config.normals and normals is None:
+            from artic.hierarchy.normals import estimate_normals
 
-        normals = estimate_normals(pts[sample])
-    normals_t = None if normals is None else torch.from_numpy(normals).to(device)[None]
-    index = None if neighbourhoods is None else neighbourhoods.to(device)
-    model.eval()
-    with torch.no_grad():
-        out = model(torch.from_numpy(pts[sample]).to(device)[None], normals_t, index)
+            normals = estimate_normals(pts[sample])
+        normals_t = None if normals is None else torch.from_numpy(normals).to(device)[None]
+        index = None if neighbourhoods is None else neighbourhoods.to(device)
+        out = forward(model, pts[sample], normals_t, index)
     min_size = max(config.min_points, int(np.ceil(config.min_fraction * len(sample))))
     if isinstance(out, VoteOutput):
-        clusters, motion_prob = vote_parts(out, config.cluster_radius, min_size)
+        one_part = (STATIC,) if model.config.static_part == "one" else ()
+        clusters, motion_prob = vote_parts(
+            out, config.cluster_radius, min_size, one_part, config.mode_bandwidth
+        )
         label, confidence = clusters.label, clusters.confidence
     else:
         mask_prob = out.mask_logits[0].softmax(-1).cpu().numpy()  # (S, M + 1)
@@ -377,6 +391,20 @@ def segment(
         motion_prob[nearest],
         confidence[used].astype(np.float32),
     )
+
+
+def forward(
+    model: PartSegmentationNet,
+    points: NDArray[np.floating],
+    normals: Tensor | None = None,
+    index: BackboneIndex | None = None,
+) -> SegmentationOutput | VoteOutput:
+    """The network on one cloud (S, 3) at its input size, evaluation mode, no gradient;
+    normals (1, S, 3) on the model's device when it reads them."""
+    device = next(model.parameters()).device
+    model.eval()
+    with torch.no_grad():
+        return model(torch.from_numpy(np.asarray(points)).to(device)[None], normals, index)
 
 
 class MergedMasks(NamedTuple):

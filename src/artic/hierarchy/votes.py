@@ -10,7 +10,8 @@ IoU of about 0.5.
   the L1 distance of its predicted offset to the centre (mean) of its part's points in the
   same cloud plus one minus the cosine between the two (PointGroup's regression and
   direction losses). Coordinates are those the network sees (`normalize_points`: unit
-  sphere), so offsets are in cloud radii.
+  sphere), so offsets are in cloud radii. With `model.static_part=one` the static points
+  get no offset loss: they are one part at inference (below).
 - Inference (`cluster_votes`): points of one predicted motion type are shifted by their
   offsets and grouped by flood fill over pairs closer than that type's `cluster_radius`
   (the connected components of the radius graph, DBSCAN with min_samples 1; a radius per
@@ -21,11 +22,23 @@ IoU of about 0.5.
   ranking, is the mean probability of its motion type over its points times the fraction
   of its points whose shifted position lies within its type's radius of the part's median
   shifted position (a compact vote is a confident one).
+- Mode seeking (`inference.mode_bandwidth` h > 0, chosen on validation clouds with the
+  radii): before the flood fill, the shifted points of each motion type climb to the modes
+  of their own density (Gaussian mean shift, bandwidth h, `MODE_ITERATIONS` steps; the
+  kernel's support is the type's shifted points, which stay put). The votes of one part
+  scatter about its centre; two neighbouring parts' scatters touch, and the flood fill
+  chains through the contact. Contracted onto their modes, they come apart. The confidence's
+  compactness is measured on the moved points.
+- `model.static_part=one` (structure, not learning): in a category whose static points are
+  one rigid body (storage furniture: the carcass of every object, from which the doors and
+  drawers hang), all points of the static motion type form one part, whatever their
+  offsets; its confidence is their mean static probability. The offset branch then spends
+  its capacity on the moving parts, where the votes head loses (docs/hierarchy.md).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -36,6 +49,29 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from torch import Tensor
+
+from artic.objects.tree import MOTION_TYPES
+
+#: the static motion type's index
+STATIC = MOTION_TYPES.index("static")
+#: mean-shift steps of `seek_modes`: at the bandwidths chosen (0.05-0.1 cloud radii) the
+#: points have settled by then
+MODE_ITERATIONS = 10
+
+
+def seek_modes(
+    points: NDArray[np.floating], bandwidth: float, iterations: int = MODE_ITERATIONS
+) -> NDArray[np.float64]:
+    """Gaussian mean shift: every point of `points` (n, 3) moved `iterations` times to the
+    kernel-weighted mean of `points` around it (bandwidth in the points' units). O(n^2)
+    per step; n is at most the network's input size."""
+    x = np.asarray(points, dtype=np.float64)
+    y = x.copy()
+    for _ in range(iterations):
+        d2 = ((y[:, None, :] - x[None, :, :]) ** 2).sum(-1)
+        w = np.exp(-0.5 * d2 / (bandwidth * bandwidth))
+        y = (w @ x) / w.sum(1, keepdims=True)
+    return y
 
 
 class VoteOutput(NamedTuple):
@@ -70,10 +106,13 @@ def part_offsets(xyz: Tensor, part_id: Tensor) -> tuple[Tensor, Tensor]:
     return offsets, labelled
 
 
-def vote_loss(output: VoteOutput, part_id: Tensor, motion_type: Tensor) -> VoteLosses:
+def vote_loss(
+    output: VoteOutput, part_id: Tensor, motion_type: Tensor, vote_static: bool = True
+) -> VoteLosses:
     """PointGroup's losses, mean over the batch's labelled points (module doc).
 
     part_id: (B, N) int64, -1 for points of no part; motion_type: (B, N) int64, -1 to ignore.
+    vote_static False: points whose true motion type is static (0) get no offset loss.
     """
     zero = output.offsets.new_zeros(())
     motion = (
@@ -86,6 +125,8 @@ def vote_loss(output: VoteOutput, part_id: Tensor, motion_type: Tensor) -> VoteL
         else zero
     )
     target, labelled = part_offsets(output.xyz.detach(), part_id)
+    if not vote_static:
+        labelled = labelled & (motion_type != STATIC)
     if labelled.any():
         predicted, true = output.offsets[labelled], target[labelled]
         offset = (predicted - true).abs().sum(-1).mean()
@@ -107,17 +148,26 @@ def cluster_votes(
     motion_prob: NDArray[np.floating],
     radius: float | Sequence[float],
     min_size: int,
+    one_part: Collection[int] = (),
+    bandwidth: float = 0.0,
 ) -> Clusters:
     """Parts from shifted points (module doc): shifted (S, 3) = point + offset; motion_prob
-    (S, T) softmax over motion types; radius: one for all types or one per type.
-    Deterministic; every point gets a part."""
-    shifted = np.asarray(shifted, dtype=np.float64)
+    (S, T) softmax over motion types; radius: one for all types or one per type; one_part:
+    motion types whose points are all one part (no flood fill; confidence: their mean
+    probability of that type); bandwidth > 0: the points of each other type seek their
+    modes first (`seek_modes`). Deterministic; every point gets a part."""
+    shifted = np.array(shifted, dtype=np.float64)
     prob = np.asarray(motion_prob, dtype=np.float64)
     radii = np.broadcast_to(np.asarray(radius, dtype=np.float64), (prob.shape[1],))
     motion = prob.argmax(-1)
     groups: list[NDArray[np.int64]] = []
     for t in np.unique(motion):
         members = np.flatnonzero(motion == t)
+        if t in one_part:
+            groups.append(members)
+            continue
+        if bandwidth > 0:
+            shifted[members] = seek_modes(shifted[members], bandwidth)
         pairs = cKDTree(shifted[members]).query_pairs(radii[t], output_type="ndarray")
         graph = coo_matrix(
             (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(members),) * 2
@@ -141,15 +191,40 @@ def cluster_votes(
     for i, g in enumerate(kept):
         t = motion[g[0]]
         centre = np.median(shifted[g], axis=0)
-        compact = float(np.mean(np.linalg.norm(shifted[g] - centre, axis=1) <= radii[t]))
+        compact = (
+            1.0
+            if t in one_part
+            else float(np.mean(np.linalg.norm(shifted[g] - centre, axis=1) <= radii[t]))
+        )
         confidence[i] = float(prob[g, t].mean()) * compact
     return Clusters(label, confidence)
 
 
+def sought(output: VoteOutput, bandwidth: float, one_part: Collection[int] = ()) -> VoteOutput:
+    """`output` (one cloud) with the offsets that move each point where `cluster_votes`'s
+    mode seeking would (the points of each predicted motion type not in `one_part`), so
+    that clustering it with bandwidth 0 clusters `output` with `bandwidth` (to within
+    float32 rounding): one mean shift for many radii."""
+    if bandwidth <= 0:
+        return output
+    shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy().astype(np.float64)
+    motion = output.motion_logits[0].argmax(-1).cpu().numpy()
+    for t in np.unique(motion):
+        if t not in one_part:
+            members = motion == t
+            shifted[members] = seek_modes(shifted[members], bandwidth)
+    moved = torch.from_numpy(shifted).to(output.xyz) - output.xyz[0]
+    return output._replace(offsets=moved[None])
+
+
 def vote_parts(
-    output: VoteOutput, radius: float | Sequence[float], min_size: int
+    output: VoteOutput,
+    radius: float | Sequence[float],
+    min_size: int,
+    one_part: Collection[int] = (),
+    bandwidth: float = 0.0,
 ) -> tuple[Clusters, NDArray[np.float32]]:
     """`cluster_votes` on the first cloud of a batch -> (clusters, motion_prob (S, T))."""
     prob = output.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
     shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
-    return cluster_votes(shifted, prob, radius, min_size), prob
+    return cluster_votes(shifted, prob, radius, min_size, one_part, bandwidth), prob
