@@ -12,6 +12,7 @@ from artic.hierarchy.infer import (
     HierarchyConfig,
     build_hierarchy,
     infer_hierarchy,
+    part_motion,
     required_points,
     subsample,
 )
@@ -104,3 +105,22 @@ def test_required_points_and_subsample():
     idx = subsample(1000, 100, np.random.default_rng(0))
     assert idx.shape == (100,) and len(np.unique(idx)) == 100 and np.all(np.diff(idx) > 0)
     assert np.array_equal(subsample(50, 100, np.random.default_rng(0)), np.arange(50))
+
+
+def test_part_motion_multiplies_the_two_views_of_each_part():
+    """A part the labeller is unsure of takes the type its points agree on; a part whose
+    points are split follows the labeller; rows are distributions."""
+    labelled = np.array([[0.9, 0.05, 0.05, 0.0], [0.1, 0.45, 0.4, 0.05], [0.1, 0.6, 0.3, 0.0]])
+    part_id = np.array([0, 0, 1, 1, 1, 2, 2])
+    points = np.array([
+        [1, 0, 0, 0], [1, 0, 0, 0],  # part 0: static
+        [0, 0, 1, 0], [0, 0, 1, 0], [0, 0.2, 0.8, 0],  # part 1: translating
+        [0, 0.5, 0.5, 0], [0, 0.5, 0.5, 0],  # part 2: undecided
+    ], dtype=float)  # fmt: skip
+    motion = part_motion(labelled, part_id, points)
+    np.testing.assert_allclose(motion.sum(1), 1.0)
+    assert motion.argmax(1).tolist() == [0, 2, 1]
+    assert labelled.argmax(1).tolist() == [0, 1, 1]
+    # no common type: the labeller's own probabilities
+    disjoint = part_motion(labelled[:1] * [0, 1, 1, 1] / 0.1, np.zeros(2, int), points[:2])
+    np.testing.assert_allclose(disjoint, labelled[:1] * [0, 1, 1, 1] / 0.1)

@@ -91,7 +91,13 @@ def evaluate_chunk(
     labeller = load_labeller(inputs["labeller"] / MODEL, cfg.category.name)
     # the yaw is handled per scan by evaluate_scan (evaluate.yaw); the models see the
     # object frame
-    hcfg = HierarchyConfig(segmenter.inference, labeller.graph, estimate_axes=False, yaw="none")
+    hcfg = HierarchyConfig(
+        segmenter.inference,
+        labeller.graph,
+        estimate_axes=False,
+        yaw="none",
+        motion_evidence=cfg.evaluate.motion_evidence,
+    )
     records, skipped = [], 0
     for row in ds.select("test", cfg.evaluate.kinds, objects):
         if cfg.evaluate.max_poses is not None and row.pose >= cfg.evaluate.max_poses:

@@ -212,3 +212,8 @@ class HierarchyEvaluateConfig(Strict):
         "scan turned about z by a seeded random angle, then brought back by the estimated "
         "yaw (`canonical.canonical_yaw`), as infer-hierarchy --yaw canonical does",
     )
+    motion_evidence: Literal["labeller", "both"] = Field(
+        "both",
+        description="a part's motion type from the labeller alone (the thesis) or from the "
+        "product of its and the segmenter's per-point probabilities (`infer.part_motion`)",
+    )

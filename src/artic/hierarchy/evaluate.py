@@ -76,7 +76,7 @@ def evaluate_scan(
         **yaw_record,
     }
     for name, part_id in (("gt", gt), ("pred", seg.part_id)):
-        h = build_hierarchy(pts, part_id, labeller, cfg, rng)
+        h = build_hierarchy(pts, part_id, labeller, cfg, rng, seg.motion_prob)
         mapping = None if name == "gt" else match_parts(part_id, gt, opts.match_iou)
         c = hierarchy_counts(h.labelling, h.tree, truth, mapping)
         record[name] = {k: int(getattr(c, k)) for k in COUNTS} | {

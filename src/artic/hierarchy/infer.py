@@ -66,7 +66,10 @@ class HierarchyConfig:
     use them). yaw: "canonical" (default): the scan's front may face any direction;
     `segment_scan` and `infer_hierarchy` estimate its yaw (`canonical.canonical_yaw`),
     work in the object frame (front towards -x) and return axes and centroids in the
-    scan's frame; "none": the scan is already in the object frame.
+    scan's frame; "none": the scan is already in the object frame. motion_evidence:
+    "both" (default): where the segmenter's per-point motion types are at hand, a part's
+    motion type is the most probable under the product of the labeller's probabilities and
+    the mean of its points' (`part_motion`); "labeller": the labeller's alone (the thesis).
     """
 
     segmentation: InferenceConfig = field(default_factory=InferenceConfig)
@@ -75,6 +78,7 @@ class HierarchyConfig:
     max_points: int = MAX_POINTS
     estimate_axes: bool = True
     yaw: Literal["canonical", "none"] = "canonical"
+    motion_evidence: Literal["labeller", "both"] = "both"
 
 
 @dataclass(frozen=True)
@@ -238,18 +242,40 @@ def _tree_edge_probabilities(
     return exists, direction
 
 
+def part_motion(
+    labelled: NDArray[np.floating],
+    part_id: NDArray[np.integer],
+    motion_prob: NDArray[np.floating],
+) -> NDArray[np.float64]:
+    """Motion-type probabilities of P parts from two views: the labeller's (P, T), from the
+    part's shape in its graph, and the mean of the segmenter's per-point probabilities
+    (N, T) over the part's points (part_id (N,) in 0..P-1); each part's product, normalised
+    (the labeller's alone where the product vanishes)."""
+    lab = np.asarray(labelled, dtype=np.float64)
+    ids = np.asarray(part_id, dtype=np.int64)
+    sums = np.zeros_like(lab)
+    np.add.at(sums, ids, np.asarray(motion_prob, dtype=np.float64))
+    mean = sums / np.maximum(np.bincount(ids, minlength=len(lab)), 1)[:, None]
+    product = lab * mean
+    total = product.sum(1, keepdims=True)
+    return np.where(total > 0, product / np.where(total > 0, total, 1.0), lab)
+
+
 def build_hierarchy(
     points: NDArray[np.floating],
     part_id: NDArray[np.integer],
     labeller: GraphLabellingNet,
     cfg: HierarchyConfig | None = None,
     rng: np.random.Generator | None = None,
+    motion_prob: NDArray[np.floating] | None = None,
 ) -> LabelledHierarchy:
     """Kinematic tree of an already segmented cloud (sections 4.4, 4.2.3 and 4.5.3).
 
     points: (N, 3) metres, object frame, z up. part_id: (N,) ints covering 0..P-1, every
     part non-empty (InputError otherwise). labeller: the graph labelling network.
     rng: draws the per-part point resampling of the graph nodes (default: seed 0).
+    motion_prob: (N, 4) the segmenter's motion-type probabilities of the points, the
+    second view of each part's motion type with cfg.motion_evidence "both" (`part_motion`).
     """
     cfg = cfg or HierarchyConfig()
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -261,6 +287,9 @@ def build_hierarchy(
     graph = build_part_graph(pts, ids, rng, cfg.graph)
     t1 = time.perf_counter()
     labelling = label_graph(labeller, graph)
+    if motion_prob is not None and cfg.motion_evidence == "both":
+        motion = part_motion(labelling.motion, ids, motion_prob)
+        labelling = dataclasses.replace(labelling, motion=motion)
     t2 = time.perf_counter()
     tree = extract_tree(labelling, graph.centroids)
     t3 = time.perf_counter()
@@ -341,7 +370,8 @@ def infer_hierarchy(
     t0 = time.perf_counter()
     seg = segment_scan(points, segmenter, cfg, rng)
     work = _object_frame(_check_points(points), seg.yaw)[seg.sampled]
-    hierarchy = build_hierarchy(work, seg.part_id[seg.sampled], labeller, cfg, rng)
+    part_id, motion_prob = seg.part_id[seg.sampled], seg.motion_prob[seg.sampled]
+    hierarchy = build_hierarchy(work, part_id, labeller, cfg, rng, motion_prob)
     hierarchy = _scan_frame(hierarchy, seg.yaw)
     timings = {**seg.timings, **hierarchy.timings, "total": time.perf_counter() - t0}
     return HierarchyResult(seg, hierarchy, timings)
