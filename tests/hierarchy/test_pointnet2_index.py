@@ -22,7 +22,7 @@ from artic.hierarchy.segmentation import normalize_points
 
 
 def _config(in_channels: int = 0) -> PointNet2Config:
-    """The `experiment=ch4_cpu` backbone (width 0.25, centroids 256/64)."""
+    """A quarter-width backbone with `experiment=ch4_cpu`'s centroids (256/64)."""
     model = SegmenterModelConfig(width=0.25, centroids=(256, 64))
     return dataclasses.replace(model.network().backbone, in_channels=in_channels)
 
