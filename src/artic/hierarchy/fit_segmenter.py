@@ -311,7 +311,9 @@ def network_outputs(
     device = next(model.parameters()).device
     outputs = []
     for i in range(len(data)):
-        normals = None if data.normals is None else torch.from_numpy(data.normals[i])[None]
+        normals = (
+            None if data.normals is None else torch.from_numpy(data.normals[i]).to(device)[None]
+        )
         index = None if data.neighbourhoods is None else data.neighbourhoods[i].to(device)
         outputs.append(forward(model, data.points[i], normals, index))
     return outputs
