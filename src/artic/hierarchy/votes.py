@@ -74,6 +74,23 @@ def seek_modes(
     return y
 
 
+def seek_type_modes(
+    shifted: NDArray[np.floating],
+    motion: NDArray[np.integer],
+    bandwidth: float,
+    one_part: Collection[int] = (),
+) -> NDArray[np.float64]:
+    """`shifted` (S, 3) with the points of each motion type (S,) not in `one_part` moved
+    to their modes among that type's points (`seek_modes`); unchanged for bandwidth 0."""
+    out = np.array(shifted, dtype=np.float64)
+    if bandwidth > 0:
+        for t in np.unique(motion):
+            if t not in one_part:
+                members = motion == t
+                out[members] = seek_modes(out[members], bandwidth)
+    return out
+
+
 class VoteOutput(NamedTuple):
     motion_logits: Tensor  # (B, N, 4) over MOTION_TYPES
     offsets: Tensor  # (B, N, 3), from each point to its part's centre, in cloud radii
@@ -156,18 +173,16 @@ def cluster_votes(
     motion types whose points are all one part (no flood fill; confidence: their mean
     probability of that type); bandwidth > 0: the points of each other type seek their
     modes first (`seek_modes`). Deterministic; every point gets a part."""
-    shifted = np.array(shifted, dtype=np.float64)
     prob = np.asarray(motion_prob, dtype=np.float64)
     radii = np.broadcast_to(np.asarray(radius, dtype=np.float64), (prob.shape[1],))
     motion = prob.argmax(-1)
+    shifted = seek_type_modes(shifted, motion, bandwidth, one_part)
     groups: list[NDArray[np.int64]] = []
     for t in np.unique(motion):
         members = np.flatnonzero(motion == t)
         if t in one_part:
             groups.append(members)
             continue
-        if bandwidth > 0:
-            shifted[members] = seek_modes(shifted[members], bandwidth)
         pairs = cKDTree(shifted[members]).query_pairs(radii[t], output_type="ndarray")
         graph = coo_matrix(
             (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(members),) * 2
@@ -207,12 +222,9 @@ def sought(output: VoteOutput, bandwidth: float, one_part: Collection[int] = ())
     float32 rounding): one mean shift for many radii."""
     if bandwidth <= 0:
         return output
-    shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy().astype(np.float64)
+    shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
     motion = output.motion_logits[0].argmax(-1).cpu().numpy()
-    for t in np.unique(motion):
-        if t not in one_part:
-            members = motion == t
-            shifted[members] = seek_modes(shifted[members], bandwidth)
+    shifted = seek_type_modes(shifted, motion, bandwidth, one_part)
     moved = torch.from_numpy(shifted).to(output.xyz) - output.xyz[0]
     return output._replace(offsets=moved[None])
 
