@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import shutil
 from pathlib import Path
@@ -187,3 +188,22 @@ def test_votes_head_static_part_auto_and_mode_bandwidth_chosen(
     chosen = f"{radii};h={loaded.inference.mode_bandwidth:g}"
     assert scores[chosen] == max(scores.values())
     assert "every static point one part" in (out / "model_card.md").read_text()
+
+
+def test_cosine_schedule_sets_the_rate_of_every_step(
+    tiny: TinyScans, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rates: list[float] = []
+    original = fit_segmenter.train_step
+
+    def record(model: Any, optimizer: torch.optim.Optimizer, *args: Any) -> Any:
+        rates.append(float(optimizer.param_groups[0]["lr"]))
+        return original(model, optimizer, *args)
+
+    monkeypatch.setattr(fit_segmenter, "train_step", record)
+    extra = ("train.schedule=cosine", "train.lr=0.001", "train.min_lr_ratio=0.1")
+    code, _, err = run_cli(*ARGS, *extra, f"scans={tiny.scans}", f"out={tmp_path / 'cos'}")
+    assert code == 0, err
+    assert len(rates) >= 4 and rates[0] == pytest.approx(1e-3)
+    assert all(a > b for a, b in itertools.pairwise(rates)), rates
+    assert rates[-1] > 1e-4, "the last step is still above the floor (it is reached at the end)"

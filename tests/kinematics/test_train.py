@@ -1,4 +1,4 @@
-"""The learning-rate schedule of MDN training."""
+"""The learning-rate schedule of the supervised trainings (`learning.trainer.learning_rate`)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from artic.kinematics.config import MdnTrainConfig
-from artic.kinematics.train import learning_rate
+from artic.learning.trainer import learning_rate
 
 
 def _cfg(schedule: str, epochs: int = 10) -> MdnTrainConfig:

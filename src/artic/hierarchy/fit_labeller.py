@@ -258,6 +258,7 @@ def fit_labeller(
         for start in range(0, len(order), cfg.batch_size):
             chosen = [train[i] for i in order[start : start + cfg.batch_size]]
             graph, labels = _batch(chosen, device)
+            trainer.set_learning_rate(optimizer, cfg, epoch + start / len(order))
             terms = train_step(model, optimizer, graph, labels)
             sums += np.array([float(terms.total), *terms[1:]]) * len(chosen)
         train_terms = sums / max(len(train), 1)

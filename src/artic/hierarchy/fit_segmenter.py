@@ -259,6 +259,7 @@ def train_epoch(
         if len(index) < 2:
             continue  # BatchNorm needs two clouds per batch in training mode
         batch = augment(data.batch(index), augmentation, generator)
+        trainer.set_learning_rate(optimizer, cfg, epoch + start / len(order))
         terms = train_step(model, optimizer, batch, weights)
         total += terms["total"] * len(index)
         measure += terms[quality] * len(index)

@@ -35,7 +35,6 @@ class MdnTrainConfig(TrainConfig):
     batch_size: int = Field(64, gt=0)
     lr: float = Field(1e-3, gt=0, description="Adam's learning rate")
     schedule: Literal["constant", "cosine"] = "cosine"
-    min_lr_ratio: float = Field(0.01, ge=0, le=1, description="cosine's final lr / lr")
     patience: int = Field(5, gt=0, description="epochs without a better validation NLL")
     augment_dropout: float = Field(0.1, ge=0, lt=1)
     val_every: int = Field(10, ge=2, description="every Nth training object validates")

@@ -1,9 +1,9 @@
 """Training of the per-category MDN (Eq. 3.2): Adam on the negative log-likelihood,
 validation on withheld objects after every epoch, early stopping on validation NLL.
 
-Learning rate: constant, or a cosine decay from `lr` to `lr * min_lr_ratio` over the
-`epochs` budget, set before every step from (epoch, step) alone (`learning_rate`), so
-the schedule holds no state of its own.
+Learning rate: `train.schedule`, constant or a cosine decay from `lr` to `lr *
+min_lr_ratio` over the `epochs` budget, set before every step from (epoch, step) alone
+(`learning.trainer.learning_rate`), so the schedule holds no state of its own.
 
 Resumable and reproducible: the order of epoch e's batches and its augmentation come
 from generators seeded by (seed, e), so a run resumed from the checkpoint of epoch e
@@ -14,7 +14,6 @@ continues exactly as the uninterrupted run would. Saving checkpoints is the call
 from __future__ import annotations
 
 import logging
-import math
 import time
 from collections.abc import Callable
 
@@ -33,15 +32,6 @@ log = logging.getLogger("artic")
 
 #: seconds between progress lines within an epoch
 LOG_EVERY_S = 30.0
-
-
-def learning_rate(cfg: MdnTrainConfig, progress: float) -> float:
-    """The learning rate after `progress` epochs (fractional: epoch + step/steps)."""
-    if cfg.schedule == "constant":
-        return cfg.lr
-    t = min(max(progress / cfg.epochs, 0.0), 1.0)
-    low = cfg.lr * cfg.min_lr_ratio
-    return low + 0.5 * (cfg.lr - low) * (1.0 + math.cos(math.pi * t))
 
 
 def fit(
@@ -95,8 +85,7 @@ def _train_epoch(
         index = np.sort(order[start : start + cfg.batch_size])
         if len(index) < 2:
             continue  # BatchNorm needs two images per batch in training mode
-        for group in optimizer.param_groups:
-            group["lr"] = learning_rate(cfg, epoch + start / len(order))
+        trainer.set_learning_rate(optimizer, cfg, epoch + start / len(order))
         x = inputs(data.depth_m(index)).to(device, cfg.channels_last)
         x = augment(x, cfg.augment_dropout, generator)
         loss = mdn_nll(model(*x), targets[index].to(device))

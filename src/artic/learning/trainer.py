@@ -3,8 +3,11 @@ the Chapter 4 graph labelling network.
 
 What the three share lives here, what differs stays with each network:
 - `TrainConfig`: the `train:` section every training stage has (epochs, batch size, Adam's
-  learning rate and weight decay, early-stopping patience, device, threads); each
-  network's section extends it with its own fields and defaults.
+  learning rate, its schedule and weight decay, early-stopping patience, device, threads);
+  each network's section extends it with its own fields and defaults.
+- `learning_rate` / `set_learning_rate`: the schedule, constant or a cosine decay from `lr`
+  to `lr * min_lr_ratio` over the `epochs` budget, set before every step from (epoch,
+  step) alone, so it holds no state of its own and a resumed run continues on it.
 - `start_training`: the thread count (part of the numerics) and the device.
 - `fit`: the loop over epochs. The network supplies `run_epoch(e)` (one pass over its
   training data in the order drawn from (seed, e), then its validation), the trainer
@@ -20,6 +23,7 @@ What the three share lives here, what differs stays with each network:
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, Literal, NamedTuple, TypeVar
@@ -45,12 +49,31 @@ class TrainConfig(Strict):
     epochs: int = Field(gt=0, description="at most; early stopping usually ends sooner")
     batch_size: int = Field(gt=0)
     lr: float = Field(gt=0, description="Adam's learning rate")
+    schedule: Literal["constant", "cosine"] = Field(
+        "constant", description="constant: lr throughout; cosine: lr -> lr * min_lr_ratio"
+    )
+    min_lr_ratio: float = Field(0.01, ge=0, le=1, description="cosine's final lr / lr")
     weight_decay: float = Field(0.0, ge=0)
     patience: int = Field(gt=0, description="epochs without a better validation loss")
     device: Literal["auto", "cpu", "cuda"] = "auto"
     threads: int = Field(
         2, ge=1, description="torch threads: part of the numerics (another count, other weights)"
     )
+
+
+def learning_rate(cfg: TrainConfig, progress: float) -> float:
+    """The learning rate after `progress` epochs (fractional: epoch + step/steps)."""
+    if cfg.schedule == "constant":
+        return cfg.lr
+    t = min(max(progress / cfg.epochs, 0.0), 1.0)
+    low = cfg.lr * cfg.min_lr_ratio
+    return low + 0.5 * (cfg.lr - low) * (1.0 + math.cos(math.pi * t))
+
+
+def set_learning_rate(optimizer: torch.optim.Optimizer, cfg: TrainConfig, progress: float) -> None:
+    """Every parameter group of `optimizer` at `learning_rate(cfg, progress)`."""
+    for group in optimizer.param_groups:
+        group["lr"] = learning_rate(cfg, progress)
 
 
 def training_device(name: str) -> torch.device:
