@@ -106,6 +106,7 @@ def test_bad_inputs_exit_2(tiny: TinyScans, tmp_path: Path) -> None:
         ((f"scans={tiny.scans}", "category=no_such_category"), "no_such_category"),
         ((f"scans={tiny.scans}", "train.lr=-1"), "train.lr"),
         ((f"scans={tiny.scans}", "data.val_every=10"), "scan more objects"),
+        ((f"scans={tiny.scans}", "inference.mirror_y=true"), "inference.mirror_y"),
     ]
     for extra, message in cases:
         code, _, err = run_cli(*ARGS, *extra, f"out={tmp_path / 'x'}")

@@ -9,6 +9,7 @@ import pytest
 import torch
 from test_segmentation import _batch, three_boxes, tiny_config
 
+from artic.errors import InputError
 from artic.evaluation.segmentation import (
     average_precision,
     instance_iou,
@@ -19,8 +20,10 @@ from artic.hierarchy.cloud_cache import cloud_features
 from artic.hierarchy.fit_segmenter import static_part_of
 from artic.hierarchy.models import load_segmenter, save_segmenter
 from artic.hierarchy.segmentation import (
+    MIRROR_Y,
     InferenceConfig,
     PartSegmentationNet,
+    forward,
     make_optimizer,
     segment,
     train_step,
@@ -219,3 +222,32 @@ def test_mode_seeking_separates_touching_scatters_that_the_flood_fill_chains() -
     again = cluster_votes((sought(output, 0.05).offsets[0]).numpy(), prob, radius=0.05, min_size=5)
     np.testing.assert_array_equal(again.label, parts.label)
     assert sought(output, 0.0) is output
+
+
+def test_mirror_averaging_makes_the_outputs_mirror_equivariant() -> None:
+    """`inference.mirror_y`: the outputs on a cloud and on its mirror image are averaged,
+    so an untrained network segments a mirrored cloud as the mirror image of the cloud
+    (to float rounding), and gives the mean of its two plain outputs."""
+    torch.manual_seed(0)
+    model = PartSegmentationNet(dataclasses.replace(tiny_config(), head="votes")).eval()
+    points, _, _ = three_boxes(256, 1)
+    flip = np.array(MIRROR_Y, dtype=np.float32)
+    plain, mirrored = forward(model, points), forward(model, points * flip)
+    averaged, of_mirror = (
+        forward(model, points, mirror_y=True),
+        forward(model, points * flip, mirror_y=True),
+    )
+    assert isinstance(plain, VoteOutput) and isinstance(mirrored, VoteOutput)
+    assert isinstance(averaged, VoteOutput) and isinstance(of_mirror, VoteOutput)
+    f = torch.from_numpy(flip)
+    torch.testing.assert_close(averaged.offsets, (plain.offsets + mirrored.offsets * f) / 2)
+    prob = (plain.motion_logits.softmax(-1) + mirrored.motion_logits.softmax(-1)) / 2
+    torch.testing.assert_close(averaged.motion_logits.softmax(-1), prob)
+    torch.testing.assert_close(of_mirror.offsets, averaged.offsets * f, atol=1e-5, rtol=1e-4)
+    torch.testing.assert_close(of_mirror.motion_logits.softmax(-1), prob, atol=1e-5, rtol=1e-4)
+    assert not torch.allclose(plain.offsets, mirrored.offsets * f, atol=1e-3), (
+        "without averaging an untrained network is not mirror-equivariant"
+    )
+    masks = PartSegmentationNet(tiny_config()).eval()
+    with pytest.raises(InputError, match="mirror_y"):
+        forward(masks, points, mirror_y=True)

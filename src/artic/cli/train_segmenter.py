@@ -22,7 +22,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from artic.artifacts.formats import write_json
 from artic.artifacts.model_card import read_model_info, write_model_card
@@ -56,6 +56,12 @@ class TrainSegmenterConfig(TrainingStageConfig):
     data: CloudDataConfig
     augment: AugmentConfig
     train: SegmenterTrainConfig
+
+    @model_validator(mode="after")
+    def _mirror_needs_votes(self) -> TrainSegmenterConfig:
+        if self.inference.mirror_y and self.model.head != "votes":
+            raise ValueError("inference.mirror_y: only the votes head (model.head=votes) has it")
+        return self
 
 
 def _plan(cfg: TrainSegmenterConfig, inputs: dict[str, Path]) -> Plan:

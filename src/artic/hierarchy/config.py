@@ -103,6 +103,11 @@ class InferenceConfig(Strict):
         description="votes head: Gaussian mean-shift bandwidth (cloud radii) the shifted points "
         "climb to their modes with before the flood fill; 0: none",
     )
+    mirror_y: bool = Field(
+        False,
+        description="votes head: average the network's outputs on the cloud and on its mirror "
+        "image (y -> -y), for a model trained with augment.mirror_y",
+    )
 
     @field_validator("cluster_radius", mode="before")
     @classmethod

@@ -305,10 +305,11 @@ class SegmentationScores(NamedTuple):
 
 
 def network_outputs(
-    model: PartSegmentationNet, data: SegmentationData
+    model: PartSegmentationNet, data: SegmentationData, mirror_y: bool = False
 ) -> list[SegmentationOutput | VoteOutput]:
-    """The network's output on every prepared cloud (with its cached features), to score
-    several inference settings without running it again."""
+    """The network's output on every prepared cloud (with its cached features; averaged
+    with the mirror image's for `mirror_y`, as `segment` does), to score several inference
+    settings without running it again."""
     device = next(model.parameters()).device
     outputs = []
     for i in range(len(data)):
@@ -316,7 +317,7 @@ def network_outputs(
             None if data.normals is None else torch.from_numpy(data.normals[i]).to(device)[None]
         )
         index = None if data.neighbourhoods is None else data.neighbourhoods[i].to(device)
-        outputs.append(forward(model, data.points[i], normals, index))
+        outputs.append(forward(model, data.points[i], normals, index, mirror_y))
     return outputs
 
 
@@ -366,7 +367,7 @@ def choose_cluster_radius(
     per cloud."""
     if model.config.head != "votes" or not radii:
         return inference, {}
-    outputs = network_outputs(model, data)
+    outputs = network_outputs(model, data, inference.mirror_y)
     one_part = (STATIC,) if model.config.static_part == "one" else ()
     scores: dict[str, float] = {}
     moved: list[SegmentationOutput | VoteOutput] = []

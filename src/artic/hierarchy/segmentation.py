@@ -48,6 +48,8 @@ from artic.hierarchy.votes import STATIC, VoteLosses, VoteOutput, vote_loss, vot
 from artic.objects.tree import MOTION_TYPES
 
 N_MASKS = 24
+#: the mirror image y -> -y (`forward`'s mirror_y)
+MIRROR_Y = (1.0, -1.0, 1.0)
 Head = Literal["masks", "votes"]
 StaticPart = Literal["votes", "one"]
 
@@ -370,7 +372,7 @@ def segment(
             normals = estimate_normals(pts[sample])
         normals_t = None if normals is None else torch.from_numpy(normals).to(device)[None]
         index = None if neighbourhoods is None else neighbourhoods.to(device)
-        out = forward(model, pts[sample], normals_t, index)
+        out = forward(model, pts[sample], normals_t, index, config.mirror_y)
     min_size = max(config.min_points, int(np.ceil(config.min_fraction * len(sample))))
     if isinstance(out, VoteOutput):
         one_part = (STATIC,) if model.config.static_part == "one" else ()
@@ -398,13 +400,27 @@ def forward(
     points: NDArray[np.floating],
     normals: Tensor | None = None,
     index: BackboneIndex | None = None,
+    mirror_y: bool = False,
 ) -> SegmentationOutput | VoteOutput:
     """The network on one cloud (S, 3) at its input size, evaluation mode, no gradient;
-    normals (1, S, 3) on the model's device when it reads them."""
+    normals (1, S, 3) on the model's device when it reads them. mirror_y (votes head): the
+    mean of its outputs on the cloud and on its mirror image y -> -y, the mirror's offsets
+    mirrored back (test-time augmentation for a model trained with augment.mirror_y; the
+    neighbourhoods `index` serve both, as mirroring keeps every distance)."""
     device = next(model.parameters()).device
     model.eval()
     with torch.no_grad():
-        return model(torch.from_numpy(np.asarray(points)).to(device)[None], normals, index)
+        xyz = torch.from_numpy(np.asarray(points)).to(device)[None]
+        out = model(xyz, normals, index)
+        if not mirror_y:
+            return out
+        if not isinstance(out, VoteOutput):
+            raise InputError("inference.mirror_y: only the votes head (model.head=votes) has it")
+        flip = torch.tensor(MIRROR_Y, dtype=xyz.dtype, device=device)
+        mirrored = model(xyz * flip, None if normals is None else normals * flip, index)
+        assert isinstance(mirrored, VoteOutput)
+        prob = (out.motion_logits.softmax(-1) + mirrored.motion_logits.softmax(-1)) / 2
+        return VoteOutput(prob.log(), (out.offsets + mirrored.offsets * flip) / 2, out.xyz)
 
 
 class MergedMasks(NamedTuple):
