@@ -52,6 +52,8 @@ if TYPE_CHECKING:
     from artic.hierarchy.config import CloudDataConfig
 
 log = logging.getLogger("artic")
+#: seconds between progress lines while the training graphs are built
+LOG_EVERY_S = 30.0
 
 
 @dataclass
@@ -340,8 +342,11 @@ def load_examples(
         rows = [r for r in rows if r.pose < data.max_poses]
     trees = {o: ds.tree(o) for o in objects}
     examples: list[LabelledGraph] = []
-    skipped = 0
-    for row in rows:
+    skipped, last_log = 0, time.perf_counter()
+    for done, row in enumerate(rows):
+        if time.perf_counter() - last_log > LOG_EVERY_S:
+            log.info("  graphs: %d/%d clouds", done, len(rows))
+            last_log = time.perf_counter()
         cloud = ds.cloud(row)
         assert cloud.part_id is not None
         rng = np.random.default_rng([seed, row.object_id, row.pose, row.kind == "noisy"])
