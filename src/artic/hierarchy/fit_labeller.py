@@ -52,8 +52,6 @@ if TYPE_CHECKING:
     from artic.hierarchy.config import CloudDataConfig
 
 log = logging.getLogger("artic")
-#: seconds between progress lines while the training graphs are built
-LOG_EVERY_S = 30.0
 
 
 @dataclass
@@ -344,7 +342,7 @@ def load_examples(
     examples: list[LabelledGraph] = []
     skipped, last_log = 0, time.perf_counter()
     for done, row in enumerate(rows):
-        if time.perf_counter() - last_log > LOG_EVERY_S:
+        if time.perf_counter() - last_log > trainer.LOG_EVERY_S:
             log.info("  graphs: %d/%d clouds", done, len(rows))
             last_log = time.perf_counter()
         cloud = ds.cloud(row)

@@ -58,9 +58,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("artic")
 
-#: seconds between progress lines within an epoch
-LOG_EVERY_S = 30.0
-
 
 class PreparedCloud(NamedTuple):
     """One cloud at the network's input size S: points (S, 3) float32 metres, part_id
@@ -264,7 +261,7 @@ def train_epoch(
         total += terms["total"] * len(index)
         measure += terms[quality] * len(index)
         seen += len(index)
-        if time.perf_counter() - last_log > LOG_EVERY_S:
+        if time.perf_counter() - last_log > trainer.LOG_EVERY_S:
             log.info(
                 "  epoch %d: %d/%d clouds, loss %.3f", epoch + 1, seen, len(data), total / seen
             )

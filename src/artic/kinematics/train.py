@@ -30,9 +30,6 @@ from artic.learning.fit_state import FitState
 
 log = logging.getLogger("artic")
 
-#: seconds between progress lines within an epoch
-LOG_EVERY_S = 30.0
-
 
 def fit(
     model: KinematicsMDN,
@@ -94,7 +91,7 @@ def _train_epoch(
         optimizer.step()
         total += loss.item() * len(index)
         seen += len(index)
-        if time.perf_counter() - last_log > LOG_EVERY_S:
+        if time.perf_counter() - last_log > trainer.LOG_EVERY_S:
             log.info("  epoch %d: %d/%d images, NLL %.3f", epoch + 1, seen, len(data), total / seen)
             last_log = time.perf_counter()
     return total / max(seen, 1)

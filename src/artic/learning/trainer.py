@@ -40,6 +40,9 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("artic")
 
+#: seconds between progress lines within a long phase (an epoch, building training data)
+LOG_EVERY_S = 30.0
+
 S = TypeVar("S", bound="FitState")
 
 
