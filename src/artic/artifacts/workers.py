@@ -149,10 +149,13 @@ def _stop(pool: ProcessPoolExecutor, pending: dict[Future[int], int]) -> None:
     for p in procs:
         if p.is_alive():
             p.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
     deadline = time.monotonic() + 5
     for p in procs:
         p.join(max(0.0, deadline - time.monotonic()))
         if p.is_alive():
             p.kill()
             p.join(1)
+    # with its workers gone, the pool's manager thread ends at once; waiting for it here
+    # keeps it from writing to its closed wake-up pipe while the interpreter exits (an
+    # "OSError: Bad file descriptor" traceback after the one-line message, Python < 3.14)
+    pool.shutdown(wait=True, cancel_futures=True)
