@@ -9,9 +9,10 @@
 
 3. The Chapter 3 network: training images/s, forward latency and throughput, and the
    wall time of an `artic predict` process.
-4. Chapter 4 inference on a 20,000-point scan (default-size networks, untrained weights):
-   segmentation, graph labelling and tree extraction (+ joint axes) in-process, and the
-   wall time of an `artic infer-hierarchy` process (imports and model loading included).
+4. Chapter 4 inference on a 20,000-point scan: segmentation, graph labelling and tree
+   extraction (+ joint axes) in-process (default-size networks, untrained weights), and
+   the wall time of an `artic infer-hierarchy` process with the shipped models (imports
+   and model loading included; issue 18's target: 3 s on an idle machine).
 5. Chapter 5: simulated control steps per second of each task's environment (random
    actions) and the median planning time per demo of `artic plan-demos` (10 demos, one
    worker, the default config; target under 2 s).
@@ -289,16 +290,15 @@ def hierarchy_benchmark(tmp: Path, points: int = 20_000) -> dict[str, object]:
     """`infer-hierarchy` on a `points`-point scan with the default networks (untrained):
     in-process medians of 5 runs (models loaded) of the whole pipeline and of its steps;
     graph labelling + tree + axes also on the 9 true parts (an untrained segmenter finds
-    one part); and the median wall time of 3 `artic infer-hierarchy` processes."""
+    one part); and the median wall time of 5 `artic infer-hierarchy` processes with the
+    shipped models (after one not counted)."""
     import torch
 
     from artic.artifacts.ply import write_ply
     from artic.artifacts.workers import available_cpus
     from artic.hierarchy.gnn import GraphLabellingNet
-    from artic.hierarchy.graph import PartGraphConfig
     from artic.hierarchy.infer import HierarchyConfig, build_hierarchy, infer_hierarchy
-    from artic.hierarchy.models import save_labeller, save_segmenter
-    from artic.hierarchy.segmentation import InferenceConfig, PartSegmentationNet
+    from artic.hierarchy.segmentation import PartSegmentationNet
 
     torch.set_num_threads(available_cpus())
     torch.manual_seed(0)
@@ -310,16 +310,15 @@ def hierarchy_benchmark(tmp: Path, points: int = 20_000) -> dict[str, object]:
     steps = {k: statistics.median(r.timings[k] for r in runs) for k in runs[0].timings}
     built = [build_hierarchy(cloud, part, labeller, cfg) for _ in range(5)]
     true_parts = {k: statistics.median(b.timings[k] for b in built) for k in built[0].timings}
-    seg_path, lab_path, scan = tmp / "seg.pt", tmp / "lab.pt", tmp / "scan.ply"
-    save_segmenter(seg_path, "storage_furniture", segmenter, InferenceConfig(), {})
-    save_labeller(lab_path, "storage_furniture", labeller, PartGraphConfig(), {})
+    scan = tmp / "scan.ply"
     write_ply(scan, cloud)
     walls = []
-    for i in range(3):
+    # the user's journey: the shipped storage-furniture models (their labeller's program
+    # ships too, artic.hierarchy.compiled); run 0 warms the file cache and is not counted
+    for i in range(6):
         t0 = time.perf_counter()
         subprocess.run(
-            [*ARTIC, "infer-hierarchy", str(scan), "--out", str(tmp / f"h{i}"),
-             "--segmenter", str(seg_path), "--labeller", str(lab_path)],
+            [*ARTIC, "infer-hierarchy", str(scan), "--out", str(tmp / f"h{i}")],
             check=True, capture_output=True,
         )  # fmt: skip
         walls.append(time.perf_counter() - t0)
@@ -335,7 +334,7 @@ def hierarchy_benchmark(tmp: Path, points: int = 20_000) -> dict[str, object]:
         "true_parts_labelling_s": round(true_parts["labelling"], 3),
         "true_parts_tree_s": round(true_parts["tree"], 4),
         "true_parts_joints_s": round(true_parts["joints"], 3),
-        "process_wall_s": round(statistics.median(walls), 2),
+        "process_wall_s": round(statistics.median(walls[1:]), 2),
     }  # fmt: skip
 
 

@@ -14,6 +14,10 @@ refused. docs/models.md says how the shipped models were made.
 re-cards a model already shipped (its folder has a card.json): the figures of a new
 `artic evaluate mdn model=models/mdn/drawer` and its refined_intervals.csv
 (`artic.artifacts.model_store.recard_shipped`); the model file stays.
+
+Every run also brings the shipped labellers' compiled programs (`models/compiled/`,
+`artic.hierarchy.compiled`) up to date; `python scripts/ship_model.py --programs` does
+only that (needed after an edit of `artic/hierarchy/gnn.py`: a test says so).
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from pathlib import Path
 
 from artic.artifacts.model_store import CARD_JSON, MANIFEST, recard_shipped, ship_model
 from artic.errors import InputError
+from artic.hierarchy.compiled import compile_shipped
 
 STORE = Path(__file__).resolve().parents[1] / "models"
 
@@ -41,13 +46,25 @@ def _commit(folder: Path) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description="ship a trained model with its card")
     parser.add_argument(
-        "folder", type=Path, help="a train-mdn / train-segmenter / train-hierarchy output"
+        "folder",
+        type=Path,
+        nargs="?",
+        help="a train-mdn / train-segmenter / train-hierarchy output",
+    )
+    parser.add_argument(
+        "--programs", action="store_true", help="only compile the shipped labellers' programs"
     )
     parser.add_argument("--evaluation", type=Path, help="the evaluate output of this very model")
     parser.add_argument("--commit", help="default: the git commit of the folder's checkout")
     parser.add_argument("--preset", default="", help="when the manifest predates recording it")
     parser.add_argument("--store", type=Path, default=STORE)
     args = parser.parse_args()
+    if args.programs:
+        for program in compile_shipped(args.store):
+            print(f"program: {program}")  # noqa: T201
+        return
+    if args.folder is None:
+        parser.error("a model folder, or --programs")
     commit = args.commit or _commit(args.folder)
     shipped = (args.folder / CARD_JSON).is_file() and not (args.folder / MANIFEST).is_file()
     try:
@@ -58,6 +75,7 @@ def main() -> None:
     except InputError as err:
         raise SystemExit(f"error: {err}") from None
     print(f"shipped: {target}")  # noqa: T201
+    compile_shipped(args.store)
 
 
 if __name__ == "__main__":

@@ -23,6 +23,13 @@ def no_shipped_models(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pyt
     monkeypatch.setenv("ARTIC_MODELS", str(tmp_path_factory.getbasetemp() / "no-shipped-models"))
 
 
+@pytest.fixture(autouse=True)
+def own_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch):
+    """Tests write artic's user cache (compiled labellers) to the session's temporary
+    folder (`ARTIC_CACHE`), never to the home directory."""
+    monkeypatch.setenv("ARTIC_CACHE", str(tmp_path_factory.getbasetemp() / "artic-cache"))
+
+
 @pytest.fixture(scope="session")
 def tiny_objects(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A tiny microwave object dataset (debug=tiny)."""

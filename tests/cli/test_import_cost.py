@@ -19,7 +19,7 @@ from test_infer_hierarchy import save_models
 from artic.artifacts.ply import write_ply
 from artic.cli.main import ONE_SCAN_COMMANDS, app
 from box_clouds import box_cloud
-from fresh_python import in_fresh_python, loaded_after
+from fresh_python import in_fresh_python, loaded_after, loaded_code
 
 #: loaded only by the step that uses them: the labeller (torch_geometric), the joint axes
 #: and URDF meshes (trimesh, which brings scipy.optimize), hierarchy.png (matplotlib)
@@ -40,6 +40,39 @@ def test_the_scan_commands_import_the_step_libraries_only_when_a_step_needs_them
     names = (*STEP_LIBRARIES, *OTHER_LIBRARIES)
     statement = "import artic.cli.infer_hierarchy, artic.hierarchy.commands"
     assert loaded_after(statement, names) == []
+
+
+#: the whole command, run by `main` in a fresh interpreter; what it loaded, seen at exit
+WHOLE = """
+import atexit, json, sys
+import artic.cli.main as m
+def seen():
+    LOADED
+    print(json.dumps(loaded))
+atexit.register(seen)
+sys.argv = ["artic", *ARGV]
+m.main()
+"""
+
+
+def test_a_cached_labeller_spares_infer_hierarchy_the_pyg_import(tmp_path: Path) -> None:
+    """The labeller runs as its compiled program (artic.hierarchy.compiled) once that is
+    cached: the whole command then loads neither torch_geometric nor torch._dynamo
+    (seconds of import, docs/hierarchy.md "Speed"), nor pyplot (hierarchy.png is drawn on
+    a bare Agg Figure)."""
+    seg, lab = save_models(tmp_path / "models")
+    points, _ = box_cloud(3000)
+    scan = tmp_path / "scan.ply"
+    write_ply(scan, points)
+    argv = ["-q", "infer-hierarchy", str(scan), "--segmenter", str(seg), "--labeller", str(lab)]
+    heavy = ("torch_geometric", "torch._dynamo", "matplotlib.pyplot")
+    code = WHOLE.replace("LOADED", loaded_code(heavy).strip())
+    first = in_fresh_python(code.replace("ARGV", repr([*argv, "--out", str(tmp_path / "a")])))
+    assert "torch_geometric" in first  # type: ignore[operator]  # compiled, into the cache
+    again = in_fresh_python(code.replace("ARGV", repr([*argv, "--out", str(tmp_path / "b")])))
+    assert again == []
+    for name in ("parts.ply", "object.urdf", "hierarchy.png"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
 
 
 #: `main` with the Typer app replaced by a probe: the collector's state and OMP_NUM_THREADS

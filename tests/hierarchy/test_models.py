@@ -91,15 +91,19 @@ def test_labeller_round_trip(tmp_path: Path) -> None:
     graph_cfg = PartGraphConfig(contact_threshold=0.03, points_per_node=16)
     path = tmp_path / "model.pt"
     save_labeller(path, "lamp", model, graph_cfg, {"graphs": 10})
-    loaded = load_labeller(path, "lamp")
-    assert (loaded.category, loaded.graph, loaded.meta) == ("lamp", graph_cfg, {"graphs": 10})
-    assert loaded.model.cfg == TINY_GNN
-    assert not loaded.model.training
+    eager = load_labeller(path, "lamp", compiled=False)
+    assert (eager.category, eager.graph, eager.meta) == ("lamp", graph_cfg, {"graphs": 10})
+    assert isinstance(eager.model, GraphLabellingNet) and eager.model.cfg == TINY_GNN
+    compiled = load_labeller(path, "lamp")  # the compiled program (hierarchy.compiled)
+    assert isinstance(compiled.model, torch.jit.ScriptModule)
+    assert (compiled.category, compiled.graph, compiled.meta) == ("lamp", graph_cfg, {"graphs": 10})
     batch = collate([_graph()])
     model.eval()
     with torch.no_grad():
-        for a, b in zip(model(batch), loaded.model(batch), strict=True):
-            assert torch.equal(a, b)
+        for loaded in (eager, compiled):
+            assert not loaded.model.training
+            for a, b in zip(model(batch), loaded.model(batch), strict=True):
+                assert torch.equal(a, b)
 
 
 def test_wrong_kind_or_category_refused_by_name(tmp_path: Path) -> None:

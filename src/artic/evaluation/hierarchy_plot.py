@@ -49,15 +49,17 @@ def draw_hierarchy(
     """hierarchy.png: left, the cloud coloured by part with the joint axes (revolute
     solid, prismatic dashed); right, the tree with motion and joint types. points (M, 3),
     part_id (M,): the parts of `tree`."""
-    import matplotlib
+    # a Figure on the Agg canvas, not pyplot: pyplot's import alone is ~0.25 s of an
+    # infer-hierarchy run (issue 18's 3 s), and no window or global state is wanted
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    palette = plt.get_cmap("tab10")
+    palette = colormaps["tab10"]
     step = max(1, len(points) // _PICTURE_POINTS)
     p, ids = np.asarray(points)[::step], np.asarray(part_id)[::step]
-    fig = plt.figure(figsize=(11.0, 5.0), dpi=100)
+    fig = Figure(figsize=(11.0, 5.0), dpi=100)
+    FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=palette(ids % 10), s=3.0, linewidths=0)
     extent = float(np.ptp(p, axis=0).max()) or 1.0
@@ -113,4 +115,3 @@ def draw_hierarchy(
     ax2.set_title(f"kinematic tree: {tree.num_parts} parts", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, format="png", metadata={"Software": None})
-    plt.close(fig)

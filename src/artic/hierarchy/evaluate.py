@@ -18,7 +18,7 @@ from artic.evaluation.segmentation import motion_type_accuracy, object_detection
 from artic.hierarchy.canonical import canonical_yaw, rotate_z
 from artic.hierarchy.config import HierarchyEvaluateConfig
 from artic.hierarchy.fit_labeller import restrict_tree
-from artic.hierarchy.gnn import GraphLabellingNet
+from artic.hierarchy.gnn import Labeller
 from artic.hierarchy.infer import HierarchyConfig, build_hierarchy, segment_scan
 from artic.hierarchy.segmentation import PartSegmentationNet
 from artic.objects.tree import KinematicTree
@@ -45,7 +45,7 @@ def evaluate_scan(
     true_motion: np.ndarray,
     tree: KinematicTree,
     segmenter: PartSegmentationNet,
-    labeller: GraphLabellingNet,
+    labeller: Labeller,
     cfg: HierarchyConfig,
     opts: HierarchyEvaluateConfig,
     rng: np.random.Generator,

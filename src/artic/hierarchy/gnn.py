@@ -12,13 +12,15 @@
   features]. Existence is symmetric in the endpoints (f(a, b) + f(b, a)); direction is
   antisymmetric (g(a, b) - g(b, a)), so p(a parent of b) = 1 - p(b parent of a).
 - Loss: the sum of the four cross-entropies (direction only on existing edges).
-"""
 
-from __future__ import annotations
+`GraphLabellingNet` compiles with `torch.jit.script` (inference runs the compiled program,
+`compiled.py`): hence no `from __future__ import annotations` in this module (TorchScript
+reads the class annotations as types) and the poolings' unpool data kept as tensors.
+"""
 
 import itertools
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, NamedTuple, cast
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -29,10 +31,6 @@ from artic.hierarchy.config import GraphNetConfig
 from artic.hierarchy.graph import EDGE_FEATURES, NODE_FEATURES
 from artic.hierarchy.types import GraphLabels, PartGraph
 from artic.objects.tree import MOTION_TYPES, GraphLabelling
-
-if TYPE_CHECKING:
-    from torch_geometric.nn.pool import EdgePooling
-    from torch_geometric.nn.pool.edge_pool import UnpoolInfo
 
 
 def _mlp(widths: Sequence[int], last_activation: bool = False) -> nn.Sequential:
@@ -106,7 +104,7 @@ class GraphBatch(NamedTuple):
     batch: Tensor
     num_graphs: int
 
-    def to(self, device: torch.device | str) -> GraphBatch:
+    def to(self, device: torch.device | str) -> "GraphBatch":
         return GraphBatch(
             self.node_points.to(device),
             self.node_features.to(device),
@@ -126,7 +124,7 @@ class LabelBatch(NamedTuple):
     parent_first: Tensor
     root: Tensor
 
-    def to(self, device: torch.device | str) -> LabelBatch:
+    def to(self, device: torch.device | str) -> "LabelBatch":
         return LabelBatch(*(t.to(device) for t in self))
 
 
@@ -193,10 +191,20 @@ def graph_log_softmax(logits: Tensor, batch: Tensor, num_graphs: int) -> Tensor:
     return shifted - total.log()[batch]
 
 
+def _unpool(x: Tensor, clusters: list[Tensor], scores: list[Tensor]) -> Tensor:
+    """Features of the graph after len(clusters) edge poolings -> the original nodes:
+    `EdgePooling.unpool` (divide by the merged edge's score, copy to the merged nodes)
+    from the last pooling back to the first."""
+    for level in range(len(clusters) - 1, -1, -1):
+        x = (x / scores[level].view(-1, 1))[clusters[level]]
+    return x
+
+
 class GraphLabellingNet(nn.Module):
     """Fig. 4.4: PointNet node codes -> GraphSAGE + edge pooling/unpooling -> MLP heads."""
 
     _reverse_sign: Tensor
+    _reverse_index: Tensor
 
     def __init__(self, cfg: GraphNetConfig | None = None, encoder: PointNetEncoder | None = None):
         super().__init__()
@@ -219,33 +227,32 @@ class GraphLabellingNet(nn.Module):
         self.exists_head = _mlp([edge_in, h, h, 1])
         self.direction_head = _mlp([edge_in, h, h, 1])
         self.register_buffer("_reverse_sign", torch.tensor(_REVERSE_SIGN), persistent=False)
+        self.register_buffer("_reverse_index", torch.tensor(_REVERSE_INDEX), persistent=False)
 
     def node_features(self, graph: GraphBatch) -> Tensor:
         """The multi-scale features y (P, 2 * num_layers * hidden)."""
         x = torch.cat([self.encoder(graph.node_points), graph.node_features], dim=1)
         edge_index = torch.cat([graph.edges.T, graph.edges.T.flip(0)], dim=1)
         batch = graph.batch
-        infos: list[UnpoolInfo] = []
-        levels = []
+        # what EdgePooling.unpool reads of each pooling (its UnpoolInfo's cluster and
+        # new_edge_score), as plain tensors so that the network compiles (`compiled.py`)
+        clusters: list[Tensor] = []
+        scores: list[Tensor] = []
+        levels: list[Tensor] = []
         for conv, pool in zip(self.convs, self.pools, strict=True):
             x = F.relu(conv(x, edge_index))
-            levels.append(self._unpool(x, infos))
+            levels.append(_unpool(x, clusters, scores))
             x, edge_index, batch, info = pool(x, edge_index, batch)
-            infos.append(info)
-            levels.append(self._unpool(x, infos))
+            clusters.append(info.cluster)
+            scores.append(info.new_edge_score)
+            levels.append(_unpool(x, clusters, scores))
         return torch.cat(levels, dim=1)
-
-    def _unpool(self, x: Tensor, infos: list[UnpoolInfo]) -> Tensor:
-        """Features of the pooled graph after len(infos) poolings -> original nodes."""
-        for level in reversed(range(len(infos))):
-            x = cast("EdgePooling", self.pools[level]).unpool(x, infos[level])[0]
-        return x
 
     def forward(self, graph: GraphBatch) -> GraphLogits:
         y = self.node_features(graph)
         a, b = graph.edges[:, 0], graph.edges[:, 1]
         forward_in = torch.cat([y[a], y[b], graph.edge_features], dim=1)
-        reverse_features = graph.edge_features[:, _REVERSE_INDEX] * self._reverse_sign
+        reverse_features = graph.edge_features[:, self._reverse_index] * self._reverse_sign
         backward_in = torch.cat([y[b], y[a], reverse_features], dim=1)
         return GraphLogits(
             motion=self.motion_head(y),
@@ -255,6 +262,10 @@ class GraphLabellingNet(nn.Module):
                 self.direction_head(forward_in) - self.direction_head(backward_in)
             ).squeeze(-1),
         )
+
+
+#: the network as inference uses it: eager, or its compiled program (`hierarchy.compiled`)
+Labeller = GraphLabellingNet | torch.jit.ScriptModule
 
 
 def labelling_loss(logits: GraphLogits, labels: LabelBatch, graph: GraphBatch) -> LossTerms:
@@ -300,7 +311,7 @@ def train_step(
 
 
 @torch.no_grad()
-def predict(model: GraphLabellingNet, graph: PartGraph) -> GraphLabelling:
+def predict(model: Labeller, graph: PartGraph) -> GraphLabelling:
     """The network's probabilities on one part graph (evaluation mode)."""
     model.eval()
     device = next(model.parameters()).device

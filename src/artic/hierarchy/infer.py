@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from artic.errors import InputError
 from artic.hierarchy.canonical import YawEstimate, canonical_yaw, rotate_tree_z, rotate_z
-from artic.hierarchy.gnn import GraphLabellingNet
+from artic.hierarchy.gnn import Labeller
 from artic.hierarchy.gnn import predict as label_graph
 from artic.hierarchy.graph import PartGraphConfig, build_part_graph, check_segmented_cloud
 from artic.hierarchy.joints import JointHeuristicConfig, estimate_axes
@@ -264,7 +264,7 @@ def part_motion(
 def build_hierarchy(
     points: NDArray[np.floating],
     part_id: NDArray[np.integer],
-    labeller: GraphLabellingNet,
+    labeller: Labeller,
     cfg: HierarchyConfig | None = None,
     rng: np.random.Generator | None = None,
     motion_prob: NDArray[np.floating] | None = None,
@@ -352,7 +352,7 @@ def segment_scan(
 def infer_hierarchy(
     points: NDArray[np.floating],
     segmenter: PartSegmentationNet,
-    labeller: GraphLabellingNet,
+    labeller: Labeller,
     cfg: HierarchyConfig | None = None,
     rng: np.random.Generator | None = None,
 ) -> HierarchyResult:

@@ -29,7 +29,7 @@ from artic.errors import InputError
 if TYPE_CHECKING:
     import torch
 
-    from artic.hierarchy.gnn import GraphLabellingNet, GraphNetConfig
+    from artic.hierarchy.gnn import GraphLabellingNet, GraphNetConfig, Labeller
     from artic.hierarchy.graph import PartGraphConfig
     from artic.hierarchy.infer import HierarchyConfig
     from artic.hierarchy.segmentation import (
@@ -54,10 +54,10 @@ class LoadedSegmenter(NamedTuple):
 
 
 class LoadedLabeller(NamedTuple):
-    """A trained graph labelling network (eval mode), the part-graph settings it was
-    trained with, and the file's meta."""
+    """A trained graph labelling network (eval mode; compiled or eager), the part-graph
+    settings it was trained with, and the file's meta."""
 
-    model: GraphLabellingNet
+    model: Labeller
     graph: PartGraphConfig
     category: str
     meta: dict[str, Any]
@@ -144,23 +144,43 @@ def save_labeller(
 
 
 def load_labeller(
-    path: Path, category: str | None = None, device: str | torch.device = "cpu"
+    path: Path,
+    category: str | None = None,
+    device: str | torch.device = "cpu",
+    compiled: bool = True,
 ) -> LoadedLabeller:
     """Read a "hierarchy-gnn" model file (of `category` when given); InputError naming
-    the file when it is of another kind, category or format, or does not fit."""
-    from artic.hierarchy.gnn import GraphLabellingNet
+    the file when it is of another kind, category or format, or does not fit. `compiled`:
+    the network as its compiled program (`hierarchy.compiled`: no PyG import once the
+    program is cached; the same outputs), else the eager `GraphLabellingNet`."""
     from artic.hierarchy.graph import PartGraphConfig
 
     payload = load_model_file(path, LABELLER_KIND, category)
     try:
         network = graph_net_config_from_dict(payload["hparams"]["network"])
         graph = PartGraphConfig(**payload["hparams"]["graph"])
-        model = GraphLabellingNet(network)
-        model.load_state_dict(payload["state_dict"])
-    except (KeyError, TypeError, ValueError, RuntimeError) as err:
+    except (KeyError, TypeError, ValueError) as err:
         raise InputError(f"{path}: labeller does not load ({type(err).__name__}: {err})") from None
-    model.to(device).eval()
-    return LoadedLabeller(model, graph, str(payload["category"]), dict(payload["meta"]))
+
+    def build() -> GraphLabellingNet:
+        from artic.hierarchy.gnn import GraphLabellingNet
+
+        try:
+            model = GraphLabellingNet(network)
+            model.load_state_dict(payload["state_dict"])
+        except (KeyError, TypeError, ValueError, RuntimeError) as err:
+            raise InputError(
+                f"{path}: labeller does not load ({type(err).__name__}: {err})"
+            ) from None
+        return model.eval()
+
+    if compiled:
+        from artic.hierarchy.compiled import load_program
+
+        labeller: Labeller = load_program(path, build, device)
+    else:
+        labeller = build().to(device)
+    return LoadedLabeller(labeller, graph, str(payload["category"]), dict(payload["meta"]))
 
 
 def _choose(model: Path | None, category: str | None, kind: str, option: str) -> ModelChoice:
