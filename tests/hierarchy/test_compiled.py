@@ -74,6 +74,19 @@ def test_compiled_once_then_loaded_from_the_cache(
     assert isinstance(load_labeller(model_file).model, torch.jit.ScriptModule)
 
 
+def test_a_cache_that_cannot_be_written_only_costs_compiling_again(
+    model_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    blocked = tmp_path / "a-file"
+    blocked.write_text("")
+    monkeypatch.setenv("ARTIC_CACHE", str(blocked))  # compiled/ cannot be made under it
+    graph = _graph(4, 1)
+    got = predict(load_labeller(model_file).model, graph)
+    want = predict(load_labeller(model_file, compiled=False).model, graph)
+    assert np.array_equal(got.parent_first, want.parent_first)
+    assert blocked.read_text() == ""
+
+
 def test_another_model_file_another_program(model_file: Path, tmp_path: Path) -> None:
     other = tmp_path / "other.pt"
     save_labeller(other, "lamp", GraphLabellingNet(TINY), PartGraphConfig(), {"x": 1})

@@ -14,8 +14,9 @@ everything else an `artic infer-hierarchy` run does. So the trained network (PyG
   written by `scripts/ship_model.py`; a test checks that every shipped labeller has its
   current program); any other model's program is compiled on first use into the user's
   cache (`$ARTIC_CACHE`, else `$XDG_CACHE_HOME/artic`, else `~/.cache/artic`:
-  `compiled/<key>.pt`, written atomically, so concurrent runs at most compile twice). The
-  first run of a newly trained model pays the PyG import once.
+  `compiled/<key>.pt`, written atomically, so concurrent runs at most compile twice; a
+  cache that cannot be written only means compiling again next time). The first run of
+  a newly trained model pays the PyG import once.
 - **trust**: artic loads programs only from these two places, which only artic writes; a
   model file a user was given is still read as weights only (`model_file.py`) and compiled
   here from its state dict.
@@ -35,7 +36,7 @@ import io
 import os
 import warnings
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from functools import cache
 from importlib.metadata import version
 from pathlib import Path
@@ -107,14 +108,14 @@ def write_program(path: Path, archive: bytes) -> None:
     os.replace(tmp, path)
 
 
-def _load(path: Path) -> torch.jit.ScriptModule | None:
-    """The program at `path`; None when it is missing or unreadable (then it is compiled
-    again and replaced)."""
-    if not path.is_file():
+def _load(source: Path | io.BytesIO) -> torch.jit.ScriptModule | None:
+    """The program in `source`; None when it is missing or unreadable (then it is
+    compiled again and replaced)."""
+    if isinstance(source, Path) and not source.is_file():
         return None
     try:
         with _jit_quietly():
-            return torch.jit.load(str(path), map_location="cpu")
+            return torch.jit.load(source, map_location="cpu")
     except (RuntimeError, ValueError, OSError):
         return None
 
@@ -124,17 +125,19 @@ def load_program(
 ) -> torch.jit.ScriptModule:
     """The compiled labeller of `model_file`, in evaluation mode on `device`: loaded from
     the store or the user's cache, else made by `build()` (the eager network with the
-    file's weights), compiled and cached first."""
+    file's weights), compiled, and cached (for this run only when the cache cannot be
+    written)."""
     key = program_key(model_file)
     for path in program_paths(key):
         program = _load(path)
         if program is not None:
             return program.to(device).eval()
-    target = program_paths(key)[1]
-    write_program(target, compile_labeller(build()))
-    program = _load(target)
-    if program is None:  # pragma: no cover - a file written a moment ago
-        raise RuntimeError(f"{target}: compiled labeller does not load")
+    archive = compile_labeller(build())
+    with suppress(OSError):  # a read-only or full cache: the program serves this run only
+        write_program(program_paths(key)[1], archive)
+    program = _load(io.BytesIO(archive))
+    if program is None:  # pragma: no cover - an archive torch has just written
+        raise RuntimeError(f"{model_file}: the compiled labeller does not load")
     return program.to(device).eval()
 
 
