@@ -55,11 +55,15 @@ m.main()
 """
 
 
-def test_a_cached_labeller_spares_infer_hierarchy_the_pyg_import(tmp_path: Path) -> None:
+def test_a_cached_labeller_spares_infer_hierarchy_the_pyg_import(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The labeller runs as its compiled program (artic.hierarchy.compiled) once that is
     cached: the whole command then loads neither torch_geometric nor torch._dynamo
     (seconds of import, docs/hierarchy.md "Speed"), nor pyplot (hierarchy.png is drawn on
     a bare Agg Figure)."""
+    # a cache of its own: other tests' models have the same bytes, so the same program
+    monkeypatch.setenv("ARTIC_CACHE", str(tmp_path / "cache"))
     seg, lab = save_models(tmp_path / "models")
     points, _ = box_cloud(3000)
     scan = tmp_path / "scan.ply"
