@@ -139,12 +139,9 @@ def within_intervals(answer: dict[str, Any], truth: np.ndarray, col: dict[str, i
     level = answer["intervals"]["levels"].get("0.9")
     if not level:
         return f"no 90% intervals ({answer['intervals']['of']})"
-    names = list(answer["estimate"])
-    outside = [
-        c
-        for c in CHECKED
-        if not level["lower"][names.index(c)] <= truth[col[c]] <= level["upper"][names.index(c)]
-    ]
+    index = {name: i for i, name in enumerate(answer["estimate"])}  # the intervals' order
+    lower, upper = level["lower"], level["upper"]
+    outside = [c for c in CHECKED if not lower[index[c]] <= truth[col[c]] <= upper[index[c]]]
     verdict = "yes" if not outside else f"no, outside: {', '.join(outside)}"
     return (
         "truth inside the predicted 90% intervals of axis origin, yaw and opening (each "

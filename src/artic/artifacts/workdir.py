@@ -49,13 +49,13 @@ _RUNS = f"{_STATE}/runs"
 _CLAIMS = f"{_STATE}/claims"
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write `text` to `path` so that a reader sees the old content or the new, never a
-    partial file (a unique temporary file renamed over it)."""
+def write_atomic(path: Path, data: str | bytes) -> None:
+    """Write `data` (text or bytes) to `path` so that a reader sees the old content or the
+    new, never a partial file (a unique temporary file renamed over it)."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     try:
-        with tmp.open("w") as f:
-            f.write(text)
+        with tmp.open("wb" if isinstance(data, bytes) else "w") as f:
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)

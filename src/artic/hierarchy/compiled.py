@@ -45,6 +45,7 @@ import torch
 
 from artic.artifacts.hashing import sha256_file
 from artic.artifacts.model_store import MODEL_FILE
+from artic.artifacts.workdir import write_atomic
 from artic.config.compose import models_dir
 
 PROGRAMS = "compiled"
@@ -101,11 +102,9 @@ def compile_labeller(model: torch.nn.Module) -> bytes:
 
 
 def write_program(path: Path, archive: bytes) -> None:
-    """Write atomically (a temporary file of this process, then rename)."""
+    """Write atomically (`workdir.write_atomic`), making the folder first."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(archive)
-    os.replace(tmp, path)
+    write_atomic(path, archive)
 
 
 def _load(source: Path | io.BytesIO) -> torch.jit.ScriptModule | None:
