@@ -15,6 +15,12 @@ re-cards a model already shipped (its folder has a card.json): the figures of a 
 `artic evaluate mdn model=models/mdn/drawer` and its refined_intervals.csv
 (`artic.artifacts.model_store.recard_shipped`); the model file stays.
 
+    python scripts/ship_model.py models/mdn/drawer --half
+
+stores a shipped model's weights in half precision (`artic.artifacts.model_store.
+halve_shipped`): half the bytes; its card loses the figures measured on the old bytes, so
+evaluate it again and re-card it as above (docs/models.md).
+
 Every run also brings the shipped labellers' compiled programs (`models/compiled/`,
 `artic.hierarchy.compiled`) up to date; `python scripts/ship_model.py --programs` does
 only that (needed after an edit of `artic/hierarchy/gnn.py`: a test says so).
@@ -26,7 +32,13 @@ import argparse
 import subprocess
 from pathlib import Path
 
-from artic.artifacts.model_store import CARD_JSON, MANIFEST, recard_shipped, ship_model
+from artic.artifacts.model_store import (
+    CARD_JSON,
+    MANIFEST,
+    halve_shipped,
+    recard_shipped,
+    ship_model,
+)
 from artic.errors import InputError
 from artic.hierarchy.compiled import compile_shipped
 
@@ -55,6 +67,9 @@ def main() -> None:
         "--programs", action="store_true", help="only compile the shipped labellers' programs"
     )
     parser.add_argument("--evaluation", type=Path, help="the evaluate output of this very model")
+    parser.add_argument(
+        "--half", action="store_true", help="store a shipped model's weights as float16"
+    )
     parser.add_argument("--commit", help="default: the git commit of the folder's checkout")
     parser.add_argument("--preset", default="", help="when the manifest predates recording it")
     parser.add_argument("--store", type=Path, default=STORE)
@@ -67,8 +82,12 @@ def main() -> None:
         parser.error("a model folder, or --programs")
     commit = args.commit or _commit(args.folder)
     shipped = (args.folder / CARD_JSON).is_file() and not (args.folder / MANIFEST).is_file()
+    if args.half and (not shipped or args.evaluation is not None):
+        parser.error("--half takes a shipped model's folder and no --evaluation")
     try:
-        if shipped and args.evaluation is not None:
+        if args.half:
+            target = halve_shipped(args.folder)
+        elif shipped and args.evaluation is not None:
             target = recard_shipped(args.folder, args.evaluation)
         else:
             target = ship_model(args.folder, args.evaluation, args.store, commit, args.preset)

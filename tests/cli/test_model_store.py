@@ -16,6 +16,7 @@ from artic.artifacts.manifest import MANIFEST
 from artic.artifacts.model_store import (
     CARD_JSON,
     choose_model,
+    halve_shipped,
     list_models,
     read_card,
     recard_shipped,
@@ -207,6 +208,56 @@ def test_a_shipped_model_is_recarded_with_a_new_evaluation(workspace, trained, t
     scales = Predictor.load(folder / "model.pt", "microwave").refined_scales
     assert scales is not None and list(scales) == [0.9]
     assert not list(folder.glob(".*.partial"))
+
+
+def test_a_shipped_model_halved_predicts_as_its_rounded_weights(workspace, trained, depth_png):
+    """`halve_shipped`: float16 weights (about half the file), loaded into float32 to
+    exactly the rounded values; the card gets the new bytes' hash and size and drops the
+    figures and intervals measured on the old ones; `artic predict` still works and
+    agrees with the float32 model to float16's rounding; halving again changes nothing."""
+    import torch
+
+    from artic.kinematics.intervals import REFINED_INTERVALS, write_refined_intervals
+    from artic.kinematics.predict import Predictor
+
+    model, report = trained
+    folder = ship_model(_as_release(model, workspace / "release"), report,
+                        workspace / "shipped", "abc123")  # fmt: skip
+    columns = list(Predictor.load(folder / "model.pt").codec.columns)
+    write_refined_intervals(folder / REFINED_INTERVALS, columns, {0.9: np.ones(len(columns))})
+    before, full = read_card(folder), Predictor.load(folder / "model.pt").model.state_dict()
+    code, first, err = _predict(depth_png, "--no-refine")
+    assert code == 0, err
+    assert halve_shipped(folder) == folder
+    card = read_card(folder)
+    assert card.weights == "float16" and card.figures == {} and card.evaluation_hash is None
+    assert card.size == (folder / "model.pt").stat().st_size < 0.6 * before.size
+    assert card.model_sha256 != before.model_sha256 and card.commit == before.commit
+    assert not (folder / REFINED_INTERVALS).exists() and not list(folder.glob(".*.partial"))
+    assert "weights stored as float16" in (folder / "model_card.md").read_text()
+    loaded = Predictor.load(folder / "model.pt").model.state_dict()
+    for name, value in full.items():
+        expected = value.half().float() if value.is_floating_point() else value
+        assert loaded[name].dtype == value.dtype and torch.equal(loaded[name], expected), name
+    code, second, err = _predict(depth_png, "--no-refine")
+    assert code == 0, err
+    assert second["input"]["model_source"] == "shipped"
+    for key, value in first["estimate"].items():
+        assert second["estimate"][key] == pytest.approx(value, rel=0.02, abs=0.02), key
+    sha = card.model_sha256
+    assert read_card(halve_shipped(folder)).model_sha256 == sha
+
+
+def test_half_precision_refuses_what_float16_cannot_hold():
+    import torch
+
+    from artic.artifacts.model_file import half_precision
+
+    state = {"w": torch.tensor([1.0, 1e-3]), "steps": torch.tensor(7)}
+    half = half_precision(state)
+    assert half["w"].dtype == torch.float16 and half["steps"].dtype == torch.int64
+    with pytest.raises(ValueError, match="big: values beyond float16"):
+        half_precision({"big": torch.tensor([7e4])})
 
 
 def test_evaluate_mdn_reads_a_shipped_model(workspace, trained, tiny_depth):

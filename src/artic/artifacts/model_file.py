@@ -119,6 +119,28 @@ def save_model_file(
     save_torch_file(path, payload)
 
 
+def half_precision(state_dict: dict[str, Any]) -> dict[str, Any]:
+    """`state_dict` with every float32 / float64 tensor stored as float16 (half the bytes;
+    integer tensors such as BatchNorm's step counter unchanged), for shipping. Loading
+    casts back: `Module.load_state_dict` copies into the module's float32 parameters, so
+    the network computes in float32 on rounded weights (relative rounding <= 2^-11).
+    ValueError naming the tensor when a value would not survive (beyond float16's range,
+    or NaN/inf)."""
+    import torch
+
+    out = type(state_dict)()
+    for name, value in state_dict.items():
+        if isinstance(value, torch.Tensor) and value.dtype in (torch.float32, torch.float64):
+            half = value.to(torch.float16)
+            if not bool(torch.isfinite(half).all()):
+                raise ValueError(f"{name}: values beyond float16's range (or not finite)")
+            value = half
+        out[name] = value
+    if hasattr(state_dict, "_metadata"):
+        out._metadata = state_dict._metadata  # type: ignore[attr-defined]
+    return out
+
+
 def load_model_file(path: Path, kind: str, category: str | None = None) -> dict[str, Any]:
     """The saved dict, after checking format, kind and (if given) category; loaded with
     `weights_only=True` (`load_torch_file`)."""

@@ -117,6 +117,8 @@ class ModelCard(BaseModel):
     training_wall_time_s: float
     model_sha256: str
     size: int
+    #: how the weights are stored: float32 (as trained) or float16 (`halve_shipped`)
+    weights: str = "float32"
     evaluation_stage: str | None
     evaluation_hash: str | None
     figures: dict[str, float | int | str]
@@ -445,6 +447,42 @@ def recard_shipped(folder: Path, evaluation: Path) -> Path:
     return folder
 
 
+def halve_shipped(folder: Path) -> Path:
+    """A shipped model's weights stored in half precision (`model_file.half_precision`:
+    half the bytes; loading computes in float32 on the rounded weights). Its card gets
+    the new file's sha256 and size, and loses the figures and `refined_intervals.csv`
+    measured on the old bytes: evaluate the halved model and re-card it
+    (`recard_shipped`) before shipping it. Returns `folder`."""
+    from artic.artifacts.model_file import half_precision, load_torch_file, save_torch_file
+
+    card = read_card(folder)
+    model = folder / MODEL_FILE
+    _check_bytes(model, card)
+    if card.weights == "float16":
+        return folder
+    payload = load_torch_file(model)
+    try:
+        payload["state_dict"] = half_precision(payload["state_dict"])
+    except ValueError as err:
+        raise InputError(f"{model}: cannot be stored in half precision: {err}") from None
+    partial = folder / f".{MODEL_FILE}.partial"
+    save_torch_file(partial, payload)
+    new = card.model_copy(update={
+        "model_sha256": sha256_file(partial), "size": partial.stat().st_size,
+        "weights": "float16", "evaluation_stage": None, "evaluation_hash": None, "figures": {},
+    })  # fmt: skip
+    training = (folder / CARD_MD).read_text().split("## Shipped with artic")[0]
+    card_md = folder / f".{CARD_MD}.partial"
+    card_md.write_text(training.rstrip("\n") + "\n\n" + _shipped_section(new))
+    card_json = folder / f".{CARD_JSON}.partial"
+    write_json(card_json, new.model_dump(mode="json"))
+    (folder / REFINED_INTERVALS).unlink(missing_ok=True)
+    partial.replace(model)
+    card_md.replace(folder / CARD_MD)
+    card_json.replace(folder / CARD_JSON)
+    return folder
+
+
 def _shipped_section(card: ModelCard) -> str:
     lines = [
         "## Shipped with artic",
@@ -454,6 +492,8 @@ def _shipped_section(card: ModelCard) -> str:
         f"- data: `{card.data_path}` (content hash `{card.data_hash[:16]}`)",
         f"- config hash `{card.config_hash[:16]}`; model.pt sha256 `{card.model_sha256[:16]}`",
     ]
+    if card.weights != "float32":
+        lines.append(f"- weights stored as {card.weights} (computed in float32 when loaded)")
     if card.evaluation_stage:
         lines += [
             "",
