@@ -60,7 +60,7 @@ def progress(description: str, total: int, unit: str) -> Iterator[Callable[[int]
             rate = state["done"] / max(now - start, 1e-9)
             eta = (total - state["done"]) / rate if rate > 0 else float("inf")
             log.info(
-                "%s: %d/%d %s (%.0f %s/s, ETA %.0f s)",
+                "%s: %d/%d %s (%.3g %s/s, ETA %.0f s)",
                 description,
                 state["done"],
                 total,

@@ -189,6 +189,9 @@ def test_votes_head_static_part_auto_and_mode_bandwidth_chosen(
     chosen = f"{radii};h={loaded.inference.mode_bandwidth:g}"
     assert scores[chosen] == max(scores.values())
     assert "every static point one part" in (out / "model_card.md").read_text()
+    # the search reports its progress: 2 bandwidths x (2 radii + 3 types x (kept + 2) + best)
+    assert "train-segmenter: cluster radius: 24/24 settings" in err
+    assert f"train-segmenter: cluster radius {radii}, bandwidth" in err
 
 
 def test_cosine_schedule_sets_the_rate_of_every_step(

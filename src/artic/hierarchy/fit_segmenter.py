@@ -364,29 +364,38 @@ def choose_cluster_radius(
     per cloud."""
     if model.config.head != "votes" or not radii:
         return inference, {}
+    from artic.progress import progress
+
     outputs = network_outputs(model, data, inference.mirror_y)
     one_part = (STATIC,) if model.config.static_part == "one" else ()
+    types = [t for t in range(4) if t not in one_part]
     scores: dict[str, float] = {}
     moved: list[SegmentationOutput | VoteOutput] = []
-
-    def score(setting: tuple[float, ...], h: float) -> float:
-        key = ",".join(f"{r:g}" for r in setting) + (f";h={h:g}" if bandwidths else "")
-        if key not in scores:
-            # the points were moved to their modes once for all radii (`votes.sought`)
-            update = {"cluster_radius": setting, "mode_bandwidth": 0.0}
-            s = score_segmenter(model, data, inference.model_copy(update=update), moved)
-            scores[key] = float(np.nanmean([s.map_clean, s.map_noisy]))
-        return scores[key]
-
+    # the candidates the search looks at (each once per bandwidth, scored ones included)
+    looks = len(bandwidths or (0,)) * (len(radii) + len(types) * (1 + len(radii)) + 1)
     chosen: list[tuple[float, tuple[float, ...], float]] = []
-    for h in bandwidths or (inference.mode_bandwidth,):
-        moved[:] = [sought(o, h, one_part) if isinstance(o, VoteOutput) else o for o in outputs]
-        best: tuple[float, ...] = max(((r,) * 4 for r in radii), key=lambda s: score(s, h))
-        for t in (t for t in range(4) if t not in one_part):
-            candidates = [best, *((*best[:t], r, *best[t + 1 :]) for r in radii)]
-            best = max(candidates, key=lambda s, t=t: (score(s, h), -s[t]))  # type: ignore[misc]
-        chosen.append((score(best, h), best, h))
-    _, radius, bandwidth = max(chosen, key=lambda c: c[0])
+    with progress("train-segmenter: cluster radius", looks, "settings") as advance:
+
+        def score(setting: tuple[float, ...], h: float) -> float:
+            advance(1)
+            key = ",".join(f"{r:g}" for r in setting) + (f";h={h:g}" if bandwidths else "")
+            if key not in scores:
+                # the points were moved to their modes once for all radii (`votes.sought`)
+                update = {"cluster_radius": setting, "mode_bandwidth": 0.0}
+                s = score_segmenter(model, data, inference.model_copy(update=update), moved)
+                scores[key] = float(np.nanmean([s.map_clean, s.map_noisy]))
+            return scores[key]
+
+        for h in bandwidths or (inference.mode_bandwidth,):
+            moved[:] = [sought(o, h, one_part) if isinstance(o, VoteOutput) else o for o in outputs]
+            best: tuple[float, ...] = max(((r,) * 4 for r in radii), key=lambda s: score(s, h))
+            for t in types:
+                candidates = [best, *((*best[:t], r, *best[t + 1 :]) for r in radii)]
+                best = max(candidates, key=lambda s, t=t: (score(s, h), -s[t]))  # type: ignore[misc]
+            chosen.append((score(best, h), best, h))
+    value, radius, bandwidth = max(chosen, key=lambda c: c[0])
+    log.info("train-segmenter: cluster radius %s, bandwidth %g (validation mAP %.4f)",
+             ",".join(f"{r:g}" for r in radius), bandwidth, value)  # fmt: skip
     update = {"cluster_radius": radius, "mode_bandwidth": bandwidth}
     return inference.model_copy(update=update), scores
 
