@@ -18,12 +18,14 @@ from artic.errors import InputError
 from artic.hierarchy.canonical import (
     FRONT_WEIGHTS,
     MIN_POINTS,
+    YawConfig,
     canonical_yaw,
     fit_front_weights,
     front_example,
     front_probabilities,
     rotate_tree_z,
     rotate_z,
+    yaw_config,
 )
 from artic.hierarchy.gnn import GraphLabellingNet
 from artic.hierarchy.infer import HierarchyConfig, infer_hierarchy, segment_scan
@@ -73,6 +75,49 @@ def cabinet(n: int = 6000, seed: int = 0, door_deg: float = 40.0) -> np.ndarray:
     hinge = np.array([-0.2, -0.29, 0.0])
     moving = rotate_z(np.concatenate(clouds[len(panels) :]), math.radians(door_deg)) + hinge
     return np.concatenate([*clouds[: len(panels)], moving]).astype(np.float32)
+
+
+def chair(swivel_deg: float, n: int = 6000, seed: int = 0) -> np.ndarray:
+    """An office chair in artic's object frame (objects/structures/office_chair.py): four
+    legs along +-x and +-y, a tube, and a seat with its back (behind it, at +x when the seat
+    is not turned) swivelled by `swivel_deg` about z."""
+    rng = np.random.default_rng(seed)
+    legs = [([0.0, -0.02, 0.05], [0.3, 0.02, 0.09])]
+    legs = [(rotate_z(np.array(lo), k * math.pi / 2), rotate_z(np.array(hi), k * math.pi / 2))
+            for k in range(4) for lo, hi in legs]  # fmt: skip
+    base = [(np.minimum(lo, hi), np.maximum(lo, hi)) for lo, hi in legs]
+    base.append((np.array([-0.03, -0.03, 0.09]), np.array([0.03, 0.03, 0.45])))  # tube
+    seat = [([-0.23, -0.24, 0.45], [0.23, 0.24, 0.52]), ([0.2, -0.21, 0.52], [0.23, 0.21, 1.0])]
+    counts = [400] * len(base) + [n // 2, n // 2]
+    clouds = [box_surface(list(lo), list(hi), c, rng)
+              for (lo, hi), c in zip([*base, *seat], counts, strict=True)]  # fmt: skip
+    turned = rotate_z(np.concatenate(clouds[len(base) :]), math.radians(swivel_deg))
+    return np.concatenate([*clouds[: len(base)], turned]).astype(np.float32)
+
+
+@pytest.mark.parametrize("swivel_deg", (0.0, 27.0, -100.0))
+def test_an_office_chair_is_aligned_by_its_legs_and_faces_away_from_its_back(
+    swivel_deg: float,
+) -> None:
+    """The office chair's yaw step (`yaw_config("office_chair")`): the planes of its legs
+    (its seat swivels, so the default reads the seat's angle instead), the front the side
+    away from its back; a back turned 45 degrees off every side is an even choice."""
+    settings = yaw_config("office_chair")
+    assert settings.front == "opposite_top" and yaw_config("storage_furniture") == YawConfig()
+    points = chair(swivel_deg)
+    for yaw_deg in (12.0, -75.0, 160.0):
+        turned = rotate_z(points, math.radians(yaw_deg))
+        estimate = canonical_yaw(turned, settings)
+        assert angle_gap(math.degrees(estimate.plane_yaw), yaw_deg, 90.0) < 0.5
+        # the object frame turned so that the back is nearest +x: the legs' quarter turn
+        # nearest the seat's swivel
+        expected = yaw_deg + 90.0 * round(swivel_deg / 90.0)
+        assert angle_gap(estimate.yaw_deg, expected, 360.0) < 0.5, estimate
+        if swivel_deg == 27.0:  # the seat's own planes are 27 degrees off the legs'
+            default = canonical_yaw(turned)
+            assert angle_gap(math.degrees(default.plane_yaw), yaw_deg, 90.0) > 5.0
+    split = canonical_yaw(chair(45.0), settings)
+    assert split.front_confidence < 0.6 and np.sort(split.side_probabilities)[-2] > 0.4
 
 
 @pytest.mark.parametrize("yaw_deg", YAWS)

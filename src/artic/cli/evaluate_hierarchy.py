@@ -79,6 +79,7 @@ def evaluate_chunk(
     """Evaluate the scans of chunk `chunk`'s test objects into tmp/chunks/<chunk>.json."""
     import torch
 
+    from artic.hierarchy.canonical import yaw_config
     from artic.hierarchy.evaluate import evaluate_scan
     from artic.hierarchy.infer import HierarchyConfig
     from artic.hierarchy.models import load_labeller, load_segmenter
@@ -97,6 +98,7 @@ def evaluate_chunk(
         estimate_axes=False,
         yaw="none",
         motion_evidence=cfg.evaluate.motion_evidence,
+        yaw_settings=yaw_config(cfg.category.name),
     )
     records, skipped = [], 0
     for row in ds.select("test", cfg.evaluate.kinds, objects):
@@ -155,6 +157,11 @@ def _finalize(
         error = np.degrees(np.abs([r["yaw_error"] for r in records]))
         stats["yaw error median (deg)"] = round(float(np.median(error)), 2)
         stats["yaw within 5 deg"] = round(float(np.mean(error <= 5.0)), 4)
+        # the planes' angle alone (the yaw modulo a quarter turn): all an office chair's
+        # four-fold base tells (docs/hierarchy.md, "Scan frame and yaw")
+        planes = np.abs((error + 45.0) % 90.0 - 45.0)
+        stats["yaw error mod 90 median (deg)"] = round(float(np.median(planes)), 3)
+        stats["yaw mod 90 within 2 deg"] = round(float(np.mean(planes <= 2.0)), 4)
     return stats
 
 

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -75,6 +75,28 @@ class YawConfig:
     refine_deg: float = 5.0
     search_deg: float = 3.0
     bin_m: float = 0.003
+    #: the planes are read from the points in this share of the height, from the bottom
+    #: (1: all of them; an office chair's 0.12: its legs, since its seat swivels)
+    plane_band: float = 1.0
+    #: how the front is chosen among the four sides: "profile" (`FRONT_WEIGHTS`, fitted on
+    #: storage furniture) or "opposite_top": the side away from where the points of the
+    #: top `top_band` of the height lie, seen from the centre of the plane band's points
+    #: (an office chair's back is behind its seat); its probabilities are a softmax of
+    #: each side's distance to them over `top_scale_m`
+    front: Literal["profile", "opposite_top"] = "profile"
+    top_band: float = 0.25
+    top_scale_m: float = 0.02
+
+
+#: the settings of the yaw step per category, where they differ from `YawConfig()`: an
+#: office chair's legs are its only planes that stay in the object frame's axes (its
+#: seat and back swivel), and what tells its front is its back (docs/hierarchy.md)
+CATEGORY_YAW = {"office_chair": YawConfig(plane_band=0.12, front="opposite_top")}
+
+
+def yaw_config(category: str) -> YawConfig:
+    """The yaw step's settings for scans of `category` (`CATEGORY_YAW`, else defaults)."""
+    return CATEGORY_YAW.get(category, YawConfig())
 
 
 class YawEstimate(NamedTuple):
@@ -347,6 +369,13 @@ def _plane_angle(
     return _sharpest(pts[:, :2], coarse, cfg), confidence
 
 
+def _band(pts: NDArray[np.float64], low: float, high: float) -> NDArray[np.bool_]:
+    """(N,) the points whose height lies in [low, high] of the cloud's z extent (shares)."""
+    z = pts[:, 2]
+    bottom, height = float(z.min()), float(np.ptp(z))
+    return np.asarray((z >= bottom + low * height) & (z <= bottom + high * height))
+
+
 def canonical_yaw(points: NDArray[np.floating], cfg: YawConfig | None = None) -> YawEstimate:
     """The yaw of a scan: `rotate_z(points, -estimate.yaw)` is it in the object frame.
 
@@ -355,10 +384,20 @@ def canonical_yaw(points: NDArray[np.floating], cfg: YawConfig | None = None) ->
     cfg = cfg or YawConfig()
     pts = _thinned(_checked(points), cfg.max_points)
     normals, flatness = point_normals(pts, cfg.neighbours)
-    plane, plane_confidence = _plane_angle(pts, normals, flatness, cfg)
+    band = _band(pts, 0.0, cfg.plane_band)
+    if band.sum() < MIN_POINTS:
+        band[:] = True
+    plane, plane_confidence = _plane_angle(pts[band], normals[band], flatness[band], cfg)
     aligned = rotate_z(pts, -plane)
-    aligned_normals = rotate_z(normals, -plane)
-    probabilities = front_probabilities(side_features(aligned, aligned_normals, cfg))
+    if cfg.front == "opposite_top":
+        centre = aligned[band, :2].mean(axis=0)
+        top = aligned[_band(pts, 1.0 - cfg.top_band, 1.0), :2].mean(axis=0)
+        # side k faces _SIDES[k]: the front is the side the top lies farthest away from
+        scores = -(_SIDES @ (top - centre)) / cfg.top_scale_m
+        e = np.exp(scores - scores.max())
+        probabilities = e / e.sum()
+    else:
+        probabilities = front_probabilities(side_features(aligned, rotate_z(normals, -plane), cfg))
     front = int(np.argmax(probabilities))
     yaw = (plane + front * math.pi / 2 + math.pi) % (2 * math.pi) - math.pi
     return YawEstimate(yaw, plane, plane_confidence, float(probabilities[front]), probabilities)

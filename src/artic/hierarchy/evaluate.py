@@ -15,7 +15,7 @@ import numpy as np
 from artic.evaluation.hierarchy import hierarchy_counts, match_parts
 from artic.evaluation.hierarchy_report import COUNTS
 from artic.evaluation.segmentation import motion_type_accuracy, object_detections
-from artic.hierarchy.canonical import canonical_yaw, rotate_z
+from artic.hierarchy.canonical import YawConfig, canonical_yaw, rotate_z
 from artic.hierarchy.config import HierarchyEvaluateConfig
 from artic.hierarchy.fit_labeller import restrict_tree
 from artic.hierarchy.gnn import Labeller
@@ -25,15 +25,15 @@ from artic.objects.tree import KinematicTree
 
 
 def _turned_and_recovered(
-    points: np.ndarray, rng: np.random.Generator
+    points: np.ndarray, rng: np.random.Generator, settings: YawConfig
 ) -> tuple[np.ndarray, dict[str, float]]:
     """`points` turned about z by an angle drawn from `rng`, then turned back by the yaw
-    `canonical_yaw` estimates of the turned scan (what infer-hierarchy --yaw canonical
-    works on), and the angles (radians): turned, estimated, and the error wrapped to
-    [-pi, pi)."""
+    `canonical_yaw` estimates of the turned scan with `settings` (what infer-hierarchy
+    --yaw canonical works on), and the angles (radians): turned, estimated, and the error
+    wrapped to [-pi, pi)."""
     turned_by = float(rng.uniform(-np.pi, np.pi))
     turned = rotate_z(points, turned_by)
-    estimate = canonical_yaw(turned)
+    estimate = canonical_yaw(turned, settings)
     error = (estimate.yaw - turned_by + np.pi) % (2 * np.pi) - np.pi
     record = {"yaw": turned_by, "yaw_estimate": estimate.yaw, "yaw_error": float(error)}
     return rotate_z(turned, -estimate.yaw).astype(np.float32), record
@@ -54,7 +54,7 @@ def evaluate_scan(
     points (N, 3) metres; true_part, true_motion (N,) ints (-1: no part)."""
     yaw_record: dict[str, float] = {}
     if opts.yaw == "random":
-        points, yaw_record = _turned_and_recovered(points, rng)
+        points, yaw_record = _turned_and_recovered(points, rng, cfg.yaw_settings)
     labelled = true_part >= 0
     present = np.unique(true_part[labelled])
     if tree.root not in present or present.max() >= tree.num_parts:

@@ -34,7 +34,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from artic.errors import InputError
-from artic.hierarchy.canonical import YawEstimate, canonical_yaw, rotate_tree_z, rotate_z
+from artic.hierarchy.canonical import (
+    YawConfig,
+    YawEstimate,
+    canonical_yaw,
+    rotate_tree_z,
+    rotate_z,
+)
 from artic.hierarchy.gnn import Labeller
 from artic.hierarchy.gnn import predict as label_graph
 from artic.hierarchy.graph import PartGraphConfig, build_part_graph, check_segmented_cloud
@@ -66,7 +72,8 @@ class HierarchyConfig:
     use them). yaw: "canonical" (default): the scan's front may face any direction;
     `segment_scan` and `infer_hierarchy` estimate its yaw (`canonical.canonical_yaw`),
     work in the object frame (front towards -x) and return axes and centroids in the
-    scan's frame; "none": the scan is already in the object frame. motion_evidence:
+    scan's frame; "none": the scan is already in the object frame. yaw_settings: the yaw
+    step's (`canonical.yaw_config(category)` for the models' category). motion_evidence:
     "both" (default): where the segmenter's per-point motion types are at hand, a part's
     motion type is the most probable under the product of the labeller's probabilities and
     the mean of its points' (`part_motion`); "labeller": the labeller's alone (the thesis).
@@ -79,6 +86,7 @@ class HierarchyConfig:
     estimate_axes: bool = True
     yaw: Literal["canonical", "none"] = "canonical"
     motion_evidence: Literal["labeller", "both"] = "both"
+    yaw_settings: YawConfig = field(default_factory=YawConfig)
 
 
 @dataclass(frozen=True)
@@ -317,7 +325,7 @@ def segment_scan(
     rng = rng if rng is not None else np.random.default_rng(0)
     t_start = time.perf_counter()
     pts = _check_points(points)
-    yaw = canonical_yaw(pts) if cfg.yaw == "canonical" else None
+    yaw = canonical_yaw(pts, cfg.yaw_settings) if cfg.yaw == "canonical" else None
     pts = _object_frame(pts, yaw)
     t_yaw = time.perf_counter()
     sampled = subsample(len(pts), cfg.max_points, rng)

@@ -18,7 +18,7 @@ the loaded models were trained for.
 from __future__ import annotations
 
 import re
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -212,12 +212,15 @@ def find_labeller(
 def hierarchy_config(
     segmenter: LoadedSegmenter | None, labeller: LoadedLabeller | None, max_points: int
 ) -> HierarchyConfig:
-    """The `HierarchyConfig` the trained models were made for (defaults for the rest)."""
+    """The `HierarchyConfig` the trained models were made for, with their category's yaw
+    step (`canonical.yaw_config`); defaults for the rest."""
+    from artic.hierarchy.canonical import yaw_config
     from artic.hierarchy.infer import HierarchyConfig
 
     cfg = HierarchyConfig(max_points=max_points)
     if segmenter is not None:
-        cfg = HierarchyConfig(segmenter.inference, cfg.graph, cfg.joints, max_points)
+        cfg = replace(cfg, segmentation=segmenter.inference)
     if labeller is not None:
-        cfg = HierarchyConfig(cfg.segmentation, labeller.graph, cfg.joints, max_points)
-    return cfg
+        cfg = replace(cfg, graph=labeller.graph)
+    model = segmenter or labeller
+    return cfg if model is None else replace(cfg, yaw_settings=yaw_config(model.category))
