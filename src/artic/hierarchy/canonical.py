@@ -26,8 +26,12 @@ in the object frame and `rotate_z(results, yaw)` brings points, axes and origins
    degrees of it). The weights (`FRONT_WEIGHTS`) are a multinomial logistic regression
    over the four sides fitted on artic's training scans of storage furniture, so
    `front_confidence` is the softmax probability of the chosen side. Where the
-   geometry says nothing about the front (a closed box), it is a guess; for other
-   categories (lamps, chairs) the weights were not fitted.
+   geometry says nothing about the front (a closed box), it is a guess; for lamps the
+   weights were not fitted (they are used as they are).
+
+Office chairs (`CATEGORY_YAW`, `yaw_config`): the seat and back swivel, so step 1 reads
+only the legs (the lowest `plane_band` of the height), and step 2 takes the side away
+from the back (`front="opposite_top"`).
 
 Pure numpy/scipy, deterministic: the same points give the same estimate (clouds above
 `max_points` are thinned by a fixed stride, no random draw).
