@@ -430,21 +430,30 @@ def recard_shipped(folder: Path, evaluation: Path) -> Path:
         "evaluation_hash": evaluated.content_hash,
         "figures": _figures(evaluated.stats),
     })  # fmt: skip
+    intervals = evaluation / REFINED_INTERVALS
+    _replace_card(folder, new, intervals if intervals.is_file() else None)
+    return folder
+
+
+def _replace_card(folder: Path, new: ModelCard, intervals: Path | None) -> None:
+    """A shipped folder's `card.json` and model card (its training part kept) written for
+    `new`, and its `refined_intervals.csv` a copy of `intervals` (None: removed); a
+    `.model.pt.partial` beside them replaces the model file first. Each file is written
+    beside and renamed over."""
     training = (folder / CARD_MD).read_text().split("## Shipped with artic")[0]
     partial = {
-        name: folder / f".{name}.partial" for name in (CARD_MD, CARD_JSON, REFINED_INTERVALS)
+        name: folder / f".{name}.partial"
+        for name in (MODEL_FILE, CARD_MD, CARD_JSON, REFINED_INTERVALS)
     }
     partial[CARD_MD].write_text(training.rstrip("\n") + "\n\n" + _shipped_section(new))
     write_json(partial[CARD_JSON], new.model_dump(mode="json"))
-    intervals = evaluation / REFINED_INTERVALS
-    if intervals.is_file():
+    if intervals is not None:
         shutil.copyfile(intervals, partial[REFINED_INTERVALS])
     else:
         (folder / REFINED_INTERVALS).unlink(missing_ok=True)
     for name, path in partial.items():
         if path.is_file():
             path.replace(folder / name)
-    return folder
 
 
 def halve_shipped(folder: Path) -> Path:
@@ -471,15 +480,7 @@ def halve_shipped(folder: Path) -> Path:
         "model_sha256": sha256_file(partial), "size": partial.stat().st_size,
         "weights": "float16", "evaluation_stage": None, "evaluation_hash": None, "figures": {},
     })  # fmt: skip
-    training = (folder / CARD_MD).read_text().split("## Shipped with artic")[0]
-    card_md = folder / f".{CARD_MD}.partial"
-    card_md.write_text(training.rstrip("\n") + "\n\n" + _shipped_section(new))
-    card_json = folder / f".{CARD_JSON}.partial"
-    write_json(card_json, new.model_dump(mode="json"))
-    (folder / REFINED_INTERVALS).unlink(missing_ok=True)
-    partial.replace(model)
-    card_md.replace(folder / CARD_MD)
-    card_json.replace(folder / CARD_JSON)
+    _replace_card(folder, new, None)
     return folder
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -79,10 +80,9 @@ def evaluate_chunk(
     """Evaluate the scans of chunk `chunk`'s test objects into tmp/chunks/<chunk>.json."""
     import torch
 
-    from artic.hierarchy.canonical import yaw_config
     from artic.hierarchy.evaluate import evaluate_scan
-    from artic.hierarchy.infer import HierarchyConfig
-    from artic.hierarchy.models import load_labeller, load_segmenter
+    from artic.hierarchy.infer import MAX_POINTS
+    from artic.hierarchy.models import hierarchy_config, load_labeller, load_segmenter
 
     torch.set_num_threads(cfg.runtime.threads or available_cpus())
     ds = _dataset(str(inputs["scans"]), cfg.category.name)
@@ -92,13 +92,11 @@ def evaluate_chunk(
     labeller = load_labeller(inputs["labeller"] / MODEL, cfg.category.name)
     # the yaw is handled per scan by evaluate_scan (evaluate.yaw); the models see the
     # object frame
-    hcfg = HierarchyConfig(
-        segmenter.inference,
-        labeller.graph,
+    hcfg = replace(
+        hierarchy_config(segmenter, labeller, MAX_POINTS),
         estimate_axes=False,
         yaw="none",
         motion_evidence=cfg.evaluate.motion_evidence,
-        yaw_settings=yaw_config(cfg.category.name),
     )
     records, skipped = [], 0
     for row in ds.select("test", cfg.evaluate.kinds, objects):
