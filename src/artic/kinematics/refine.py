@@ -149,6 +149,12 @@ EDGE_ROWS = 3
 #: when the mixture puts all its weight on the network's side; the margin shrinks with that
 #: weight w as SIDE_MARGIN (2 w - 1), to 0 for a mixture split evenly between the sides
 SIDE_MARGIN = 0.25
+#: a point below a face's lowest pixel is still on the face within this of its plane (m;
+#: `_face_bottoms`): a plinth recessed behind a door is farther
+LIFT_TOLERANCE = 0.025
+#: the doors' lift (`_lift`): 0 below this (m), at most this share of the object's height
+MIN_LIFT = 0.015
+MAX_LIFT = 0.3
 #: fewer observed pixels than this: not refined
 MIN_OBSERVED = 50
 #: the handle test (`handle_position`): pixels within the door's outline, widened across
@@ -200,6 +206,10 @@ class Hypothesis:
     chirality: int
     qs: tuple[float, ...]
     joint_type: str = "revolute"
+    #: how far the doors' bottom edge stands above the base (m): a plinth or kick plate
+    #: under the front, which the box model does not have (`_lift`). It moves the joint
+    #: origins of the label up (`PosedRenderer.label`), not the rendered box
+    lift: float = 0.0
 
     @classmethod
     def from_label(
@@ -274,6 +284,8 @@ class Candidate:
     residual: float
     inside_interval: bool
     label: Array
+    #: the refined hypothesis the label is of
+    hypothesis: Hypothesis | None = None
 
 
 @dataclass(frozen=True)
@@ -376,7 +388,10 @@ class PosedRenderer:
             raise ValueError("PosedRenderer: another geometry or hinge side")
         posed = dataclasses.replace(self.object, base_pose=h.pose_matrix())
         labels = image_labels(h.spec(category, self.parts), posed, np.array(h.qs))
-        return np.array([labels[c] for c in columns], dtype=np.float64)
+        label = np.array([labels[c] for c in columns], dtype=np.float64)
+        for j in range(joint_count(columns)):  # the doors stand `lift` above the base
+            label[columns.index(f"j{j}_origin_z")] += h.lift
+        return label
 
     def close(self) -> None:
         self.backend.close()
@@ -412,6 +427,9 @@ class _Faces:
     side: tuple[Array, Array]
     #: the base's height (camera z) read at each bottom silhouette edge pixel (K,)
     bottom: Array
+    #: the height (camera z) of the bottom edge of the broad faces of the doors standing
+    #: on the base, per image column of each face (`_face_bottoms`; K,)
+    door_bottom: Array
     #: each door's broad faces (or the drawer's front), in joint order
     doors: tuple[tuple[Array, Array], ...]
 
@@ -448,6 +466,8 @@ def _faces(
     side = is_body & ~front & (np.abs(body[:, 1]) > h.width / 2 - FACE_EPS)
     ends_at_base = front | side
     door_faces = []
+    door_level: list[NDArray[np.bool_]] = []
+    door_frames: list[Array] = []
     for door_pose, door in zip(door_poses, doors, strict=True):
         local = (p_rendered - door_pose[:3, 3]) @ door_pose[:3, :3]
         local_seen = (p_observed - door_pose[:3, 3]) @ door_pose[:3, :3]
@@ -462,16 +482,70 @@ def _faces(
             if door.at_base:
                 ends_at_base = ends_at_base | on
         on &= near(local, local_seen, 0)
+        if door.at_base and h.joint_type == "revolute":
+            broad_front = np.abs(local[:, 0] + thickness) < FACE_EPS
+            door_level += [on & broad_front, on & ~broad_front]
+            door_frames += [door_pose, door_pose]
         door_faces.append((p_observed[on], local[on, 0]))
     front &= near(body, body_seen, 0)
     side &= near(body, body_seen, 1)
     bottom = _bottom_edge(rows, cols, ends_at_base, observed, rendered, rays)
+    door_bottoms = [_face_bottoms(rows[m], cols[m], frame, observed, rays)
+                    for m, frame in zip(door_level, door_frames, strict=True)]  # fmt: skip
     return _Faces(
         (p_observed[front], body[front, 0]),
         (p_observed[side], body[side, 1]),
         bottom,
+        np.concatenate([np.zeros(0), *door_bottoms]),
         tuple(door_faces),
     )
+
+
+def _face_bottoms(
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    frame: Array,
+    observed: NDArray[np.floating],
+    rays: NDArray[np.float32],
+) -> Array:
+    """The height (camera z, m) of one face's bottom edge in each image column of its
+    observed pixels (`rows`, `cols`; the face is the plane x = const of `frame` (4, 4),
+    at the median x of those pixels): down the column from its lowest pixel, the face goes
+    on while the points lie within `LIFT_TOLERANCE` of its plane (one pixel off it, the
+    sensor's noise, does not end it); the edge is its last pixel's lower edge (as
+    `_bottom_edge`). Below it the background or another surface: a plinth recessed behind
+    a door, which the box model does not have. A column whose face reaches the image's
+    bottom border does not count."""
+    height = observed.shape[0]
+    if len(rows) < MIN_FACE_POINTS or height < 3:
+        return np.zeros(0)
+
+    def local_x(r: NDArray[np.intp], c: NDArray[np.intp]) -> Array:
+        p = rays[r, c].astype(np.float64) * observed[r, c, None]
+        return np.asarray((p - frame[:3, 3]) @ frame[:3, 0])
+
+    plane = float(np.median(local_x(rows, cols)))
+    lowest = np.full(observed.shape[1], -1)
+    np.maximum.at(lowest, cols, rows)
+    col = np.flatnonzero(lowest >= 0)
+
+    def on_face(r: NDArray[np.intp]) -> NDArray[np.bool_]:
+        near = np.abs(local_x(r, col) - plane) < LIFT_TOLERANCE
+        return np.asarray((observed[r, col] > 0) & near)
+
+    end = lowest[col]
+    running = np.ones(len(col), dtype=bool)
+    for _ in range(height):
+        # the next pixel on the face, or (one noisy pixel) the one after it
+        one, two = np.minimum(end + 1, height - 1), np.minimum(end + 2, height - 1)
+        on_one, on_two = on_face(one), on_face(two) & (end + 2 < height)
+        running &= (end + 1 < height) & (on_one | on_two)
+        if not running.any():
+            break
+        end = np.where(running, np.where(on_two, two, one), end)
+    step = float(rays[1, 0, 2] - rays[0, 0, 2])
+    z = (rays[end, col, 2].astype(np.float64) + 0.5 * step) * observed[end, col]
+    return np.asarray(z[end + 1 < height])
 
 
 def _bottom_edge(
@@ -660,7 +734,9 @@ def _fit(
     rhs.append(prior * np.array([h.x, h.y]))
     # every face normal is horizontal: the position across them is (x, y) alone
     t = np.linalg.lstsq(np.concatenate(rows)[:, :2], np.concatenate(rhs), rcond=None)[0]
-    return h.with_pose(float(t[0]), float(t[1]), _base_height(h, faces), yaw, tuple(qs))
+    base = _base_height(h, faces)
+    h = dataclasses.replace(h, lift=_lift(h, faces, base))
+    return h.with_pose(float(t[0]), float(t[1]), base, yaw, tuple(qs))
 
 
 def search_opening(
@@ -720,6 +796,21 @@ def _line_search(
 
 def _base_height(h: Hypothesis, faces: _Faces) -> float:
     return float(np.median(faces.bottom)) if len(faces.bottom) >= MIN_EDGE_PIXELS else h.z
+
+
+def _lift(h: Hypothesis, faces: _Faces, base: float) -> float:
+    """How far the doors stand above the `base` height (camera z) the bottom silhouette
+    edge gave (`_bottom_edge`): the median bottom edge of the doors' broad faces
+    (`_face_bottoms`; not the body's front: a plinth recessed 3 cm behind it is within the
+    noise's reach of its plane, where behind a door it is a door's thickness further)
+    minus the base, 0 below `MIN_LIFT` (the sensor's noise on an object
+    with no plinth) and at most `MAX_LIFT` of the object's height; the hypothesis' own
+    lift below `MIN_EDGE_PIXELS` columns. Legs or a wall-hung cabinet lift nothing: the
+    doors' bottom is the silhouette's there, and the base reads there too."""
+    if len(faces.door_bottom) < MIN_EDGE_PIXELS:
+        return h.lift
+    lift = float(np.median(faces.door_bottom)) - base
+    return min(lift, MAX_LIFT * h.height) if lift >= MIN_LIFT else 0.0
 
 
 def _fit_drawer(
@@ -892,6 +983,7 @@ def refine(
         handle = handle_side(inside, columns, category, parts, image, view)
     if handle is not None and handle != best.chirality:
         best = min((c for c in inside if c.chirality == handle), key=lambda c: c.residual)
+    best = _refit_width(best, observed, camera, category, columns, parts, lower, upper)
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
         return Refinement(estimate, False, status, residual_network, residual_network,
@@ -945,12 +1037,86 @@ def _candidates(
                 candidates.append(Candidate(
                     int(k), float(weights[k]), h.chirality, residual,
                     interval_ok(label, columns, lower, upper, h.joint_type) if judged else True,
-                    label,
+                    label, h,
                 ))  # fmt: skip
     finally:
         for r in renderers.values():
             r.close()
     return residual_network, candidates
+
+
+def _refit_width(
+    best: Candidate,
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    parts: PartsConfig,
+    lower: Array,
+    upper: Array,
+) -> Candidate:
+    """The chosen door candidate with its width fitted too (`_fit_width`), then
+    `refine_hypothesis`'s rounds on that geometry, when its depth residual is lower and its
+    yaw and q stay inside the mixture's interval; else `best`. The width is the network's
+    until here: every candidate shares one built object per hinge side, and a side face
+    at the wrong width pulls a hinge on the other side of the object by the difference
+    (one build more for the chosen candidate: ~10-30 ms)."""
+    h = best.hypothesis
+    if h is None or h.joint_type != "revolute":
+        return best
+    rays = camera.ray_directions()
+    renderer = PosedRenderer(h, category, parts, camera)
+    try:
+        image, door_poses = renderer.render(h)
+        # the first round's tolerance: a side 4 cm from where the width puts it is still its
+        faces = _faces(h, image, door_poses, renderer.doors, observed, rays, TOLERANCES[0],
+                       renderer.door_thickness)  # fmt: skip
+        start = _fit_width(h, faces, renderer.doors)
+    finally:
+        renderer.close()
+    if start is None:
+        return best
+    renderer = PosedRenderer(start, category, parts, camera)
+    try:
+        fitted, residual = refine_hypothesis(start, renderer, observed, rays)
+        label = renderer.label(fitted, category, columns)
+    finally:
+        renderer.close()
+    if not (residual < best.residual and interval_ok(label, columns, lower, upper)):
+        return best
+    return dataclasses.replace(best, residual=residual, label=label, hypothesis=fitted)
+
+
+def _fit_width(h: Hypothesis, faces: _Faces, doors: Sequence[_Door]) -> Hypothesis | None:
+    """The base position (x, y) and the width by least squares, the yaw and q held: the
+    body's front on x = -depth/2, a side on y = +-width/2 and each door on its plane
+    through its hinge at +-width/2 (object frame), with `_fit`'s pull towards the
+    hypothesis (the width's too). None without a side face and a door face to fix it."""
+    inl_front = _ransac(faces.front[0], 0)
+    inl_side = _ransac(faces.side[0], 1)
+    inl_doors = [_ransac(pts, 2 + j) for j, (pts, _) in enumerate(faces.doors)]
+    if inl_side.sum() < MIN_FACE_POINTS or not any(k.sum() >= MIN_DOOR_POINTS for k in inl_doors):
+        return None
+    rot = rot_z(h.yaw)
+    a, b = rot[:, 0], rot[:, 1]
+    pts, offset = faces.front
+    rows = [np.tile([a[0], a[1], 0.0], (int(inl_front.sum()), 1))]
+    rhs = [pts[inl_front] @ a - offset[inl_front]]
+    pts, offset = faces.side
+    half = 0.5 * np.sign(offset[inl_side])  # the side's y is +-width/2
+    rows.append(np.column_stack([np.full(len(half), b[0]), np.full(len(half), b[1]), half]))
+    rhs.append(pts[inl_side] @ b)
+    for door, q, (pts, offset), keep in zip(doors, h.qs, faces.doors, inl_doors, strict=True):
+        d = (rot @ rot_z(door.sign * q))[:, 0]  # the door's x in the camera frame
+        fixed = rot @ np.array([door.origin[0], 0.0, door.origin[2]])
+        across = door.origin[1] / h.width * float(d @ b)  # the hinge's y scales with the width
+        rows.append(np.tile([d[0], d[1], across], (int(keep.sum()), 1)))
+        rhs.append(pts[keep] @ d - d @ fixed - offset[keep])
+    prior = math.sqrt(PRIOR_WEIGHT)
+    rows.append(prior * np.eye(3))
+    rhs.append(prior * np.array([h.x, h.y, h.width]))
+    t = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)[0]
+    return dataclasses.replace(h, x=float(t[0]), y=float(t[1]), width=max(float(t[2]), 0.1))
 
 
 def side_weight(side: int, weights: Array, means: Array, columns: list[str]) -> float:
