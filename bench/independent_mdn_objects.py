@@ -5,7 +5,8 @@ objects the MDN never trained on, rendered by a camera of another tool, predicte
     .venv/bin/python bench/independent_mdn_objects.py \
         --category microwave|cabinet|cabinet2|toaster|drawer|refrigerator \
         --objects 60 --seed 0 --model DIR [--report DIR] --out DIR \
-        [--sides both|left|right] [--sizes table_a1|generator] [--builder bench|artic] [--no-refine]
+        [--sides both|left|right] [--sizes table_a1|generator] [--builder bench|artic]
+        [--placement frame|table_a2] [--no-refine]
 
 `--model`: a `train-mdn` output folder (its `model.pt`) or a model file, of `--category`.
 `--report`: an `artic evaluate mdn` output folder of that model: the median axis-position
@@ -27,6 +28,14 @@ two joints (as `evaluate mdn`'s).
 placement and noise, but the object built by artic's own builder (`label_spec` through
 `artic.objects.categories.build`): what is left of the error is the camera, the placement
 and the noise; the difference to the default is this generator's objects.
+`--placement`: `frame` (the default) places the object anywhere it fits the image (below);
+`table_a2` keeps its base's height (camera z) inside Table A.2's range for the category
+(conf/common/category/<category>.yaml `pose.z`: the training views' heights, the camera
+above a drawer's base, 0.7-1.5 m above a refrigerator's) where the image allows it: z
+uniform over that range's overlap with the positions that keep the object inside the
+image, or the position nearest the range when they do not overlap. The distance, y, the
+objects, the camera and the noise are `frame`'s; the draws are the same numbers, so
+object i differs between the two in its height only.
 
 Writes into `--out` (a new or empty folder; built in a temporary sibling, renamed in
 place): `images/NNNNNN.png` (depth, 16-bit millimetres), `camera.json` (the six
@@ -185,6 +194,8 @@ Category = Literal["microwave", "cabinet", "cabinet2", "toaster", "drawer", "ref
 Sides = Literal["both", "left", "right"]
 Sizes = Literal["table_a1", "generator"]
 Builder = Literal["bench", "artic"]
+Placement = Literal["frame", "table_a2"]
+PLACEMENTS: Final = ("frame", "table_a2")
 Support = Literal["none", "plinth", "legs"]
 Knob = Literal["knob_box", "knob_round"]
 
@@ -226,6 +237,7 @@ SUMMARY_COLUMNS: Final = (
     "category",
     "sides",
     "sizes",
+    "placement",
     "estimator",
     "images",
     "axis_position_cm_median",
@@ -1394,11 +1406,40 @@ def nearest_distance(corners: NDArray[np.float64]) -> float:
     return hi
 
 
+def table_a2_height(category: str) -> tuple[float, float]:
+    """Table A.2's range of the base's height (camera z, m) for `category`: its
+    conf/common/category/<category>.yaml `pose.z`."""
+    from artic.planning.models import category_config
+
+    low, high = category_config(category).pose.z
+    return float(low), float(high)
+
+
+def _height(
+    rng: np.random.Generator, window: tuple[float, float], wanted: tuple[float, float] | None
+) -> float:
+    """z uniform over `window` (the heights that keep the object in the image), or over
+    its overlap with `wanted`; the window's end nearest `wanted` when they do not overlap
+    (one draw either way: the same stream)."""
+    u = _u(rng, 0.0, 1.0)
+    low, high = window
+    if wanted is not None:
+        overlap = (max(low, wanted[0]), min(high, wanted[1]))
+        if overlap[0] > overlap[1]:
+            return high if high < wanted[0] else low
+        low, high = overlap
+    return low + u * (high - low)
+
+
 def place(
-    spec: BenchSpec, rng: np.random.Generator, builder: Builder = "bench"
+    spec: BenchSpec,
+    rng: np.random.Generator,
+    builder: Builder = "bench",
+    placement: Placement = "frame",
 ) -> tuple[BenchSpec, ArticulatedObject]:
     """The object positioned: x uniform from `nearest_distance` to `DISTANCE_SPAN` beyond,
-    then y and z uniform over the offsets that keep it `MARGIN_PX` inside the image.
+    then y and z uniform over the offsets that keep it `MARGIN_PX` inside the image (z
+    inside Table A.2's range where it can be: `placement` "table_a2", module docstring).
     builder "artic": artic's own builder of the same numbers (`label_spec`), the control."""
     if builder == "artic":
         from artic.objects.categories import build as build_artic
@@ -1408,7 +1449,9 @@ def place(
         obj = build(spec)
     corners = _corners(obj, spec.q())
     x = _u(rng, (near := nearest_distance(corners)), near + DISTANCE_SPAN)
-    y, z = (_u(rng, *_window(corners, x, axis)) for axis in (1, 2))
+    y = _u(rng, *_window(corners, x, 1))
+    wanted = table_a2_height(spec.category) if placement == "table_a2" else None
+    z = _height(rng, _window(corners, x, 2), wanted)
     pose = Pose(x=x, y=y, z=z, yaw=spec.pose.yaw)
     placed = spec.model_copy(update={"pose": pose})
     return placed, dataclasses.replace(obj, base_pose=pose.matrix())
@@ -1429,9 +1472,10 @@ def make_object(
     seed: int,
     index: int,
     builder: Builder = "bench",
+    placement: Placement = "frame",
 ) -> tuple[BenchSpec, ArticulatedObject]:
     """Object `index` of the bench: drawn from `default_rng([seed, index, STREAM])`;
-    built by this file (`builder` "bench") or by artic's builder (`place`)."""
+    built by this file (`builder` "bench") or by artic's builder, placed (`place`)."""
     rng = np.random.default_rng([seed, index, STREAM])
     chirality = chirality_of(index, sides) if category in SIDED else 1
     if category == "microwave":
@@ -1446,7 +1490,7 @@ def make_object(
         spec = sample_drawer(rng, index)
     else:
         spec = sample_refrigerator(rng, index, chirality)
-    return place(spec, rng, builder)
+    return place(spec, rng, builder, placement)
 
 
 class Image(NamedTuple):
@@ -1561,6 +1605,7 @@ def summary_rows(
     errors: list[tuple[str, Score]],
     withheld: float | None,
     refine: bool = True,
+    placement: str = "frame",
 ) -> list[list[Any]]:
     """summary.csv: one row per side present ("right", "left"), then "both" when both
     are or when the images have no hinge side (side "none": cabinet2, toaster, drawer).
@@ -1579,6 +1624,7 @@ def summary_rows(
                 category,
                 name,
                 sizes,
+                placement,
                 method_name(refine),
                 len(group),
                 round(median, 3),
@@ -1607,6 +1653,7 @@ def run(
     sizes: str = "table_a1",
     builder: str = "bench",
     refine: bool = True,
+    placement: str = "frame",
 ) -> list[list[Any]]:
     """Generate, render, write, predict and score (module docstring); the summary rows.
     Everything is checked before `out` is created; InputError on bad input."""
@@ -1634,6 +1681,8 @@ def run(
         raise InputError(f"--sizes: {sizes!r}; expected table_a1 or generator")
     if builder not in ("bench", "artic"):
         raise InputError(f"--builder: {builder!r}; expected bench or artic")
+    if placement not in PLACEMENTS:
+        raise InputError(f"--placement: {placement!r}; expected frame or table_a2")
     path = model_file(model, category)
     withheld = withheld_median(report, category, refine) if report is not None else None
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -1649,7 +1698,8 @@ def run(
         scored: list[tuple[str, Score]] = []
         with make_backend("raycast", CAMERA) as backend:
             for i in range(objects):
-                spec, obj = make_object(category, sizes, sides, seed, i, builder)  # type: ignore[arg-type]
+                spec, obj = make_object(category, sizes, sides, seed, i, builder,  # type: ignore[arg-type]
+                                        placement)  # type: ignore[arg-type]  # fmt: skip
                 image = render(spec, obj, seed, backend)
                 png = tmp / "images" / f"{i:06d}.png"
                 PILImage.fromarray(image.depth_mm).save(png, format="PNG")
@@ -1672,7 +1722,7 @@ def run(
         write_csv(tmp / "labels.csv", ["image", "object_id", "side", *columns], label_rows)
         (tmp / "objects.jsonl").write_text("".join(f"{s}\n" for s in specs))
         write_csv(tmp / "errors.csv", ERROR_COLUMNS, error_rows)
-        rows = summary_rows(category, sizes, scored, withheld, refine)
+        rows = summary_rows(category, sizes, scored, withheld, refine, placement)
         write_csv(tmp / "summary.csv", SUMMARY_COLUMNS, rows)
         if out.exists():
             out.rmdir()  # empty (checked above)
@@ -1687,7 +1737,7 @@ def _table(rows: list[list[Any]]) -> str:
     """The summary as an aligned text table."""
     header = ["sides", "estimator", "images", "axis cm", "yaw deg", "config deg", "side ok %",
               "warned %", "withheld cm", "ratio"]  # fmt: skip
-    body = [[str(v) for v in (r[1], *r[3:])] for r in rows]
+    body = [[str(v) for v in (r[1], *r[4:])] for r in rows]
     widths = [max(len(x) for x in col) for col in zip(header, *body, strict=True)]
     return "\n".join(
         "  ".join(x.rjust(w) for x, w in zip(line, widths, strict=True)) for line in [header, *body]
@@ -1720,6 +1770,9 @@ def main(argv: Sequence[str]) -> int:
         "--builder", default="bench", help="bench (this file's objects) | artic (the control)"
     )
     parser.add_argument(
+        "--placement", default="frame", help="frame | table_a2 (the base's height in Table A.2's)"
+    )
+    parser.add_argument(
         "--no-refine", action="store_true", help="the network's estimate, as predict --no-refine"
     )
     parser.error = _one_line_error  # type: ignore[method-assign]
@@ -1730,7 +1783,7 @@ def main(argv: Sequence[str]) -> int:
     try:
         rows = run(
             args.category, args.objects, args.seed, args.model, args.out, args.report,
-            args.sides, args.sizes, args.builder, not args.no_refine,
+            args.sides, args.sizes, args.builder, not args.no_refine, args.placement,
         )  # fmt: skip
     except InputError as error:
         print(f"error: {error}", file=sys.stderr)
@@ -1738,7 +1791,8 @@ def main(argv: Sequence[str]) -> int:
     finally:
         logger.setLevel(level)  # callers in the same process (the tests) keep theirs
     what = "artic's builder (control)" if args.builder == "artic" else "this generator"
-    print(f"{args.category} ({args.sizes} sizes, {what}), {args.objects} objects -> {args.out}")
+    print(f"{args.category} ({args.sizes} sizes, {what}, placement {args.placement}), "
+          f"{args.objects} objects -> {args.out}")  # fmt: skip
     print(_table(rows))
     return 0
 

@@ -274,6 +274,31 @@ def test_sizes_and_distributions(bench: ModuleType) -> None:
             assert abs(spec.pose.yaw) <= math.pi / 4
 
 
+def test_table_a2_placement_moves_the_height_only(bench: ModuleType) -> None:
+    """`--placement table_a2`: the same object, distance and y as the default placement,
+    its base's height inside Table A.2's range wherever the image allows one there (else
+    at the allowed height nearest the range), and still inside the image."""
+    for category in ("drawer", "refrigerator", "cabinet"):
+        low, high = bench.table_a2_height(category)
+        inside = 0
+        for index in range(12):
+            frame, _ = bench.make_object(category, "table_a1", "both", 0, index)
+            spec, obj = bench.make_object(category, "table_a1", "both", 0, index, "bench",
+                                          "table_a2")  # fmt: skip
+            moved = spec.model_copy(update={"pose": frame.pose.model_copy(
+                update={"z": spec.pose.z})})  # fmt: skip
+            assert moved == spec  # only z differs
+            corners = bench._corners(obj, spec.q())
+            window = bench._window(corners, spec.pose.x, 2)
+            assert window[0] - 1e-9 <= spec.pose.z <= window[1] + 1e-9
+            if window[0] <= high and window[1] >= low:
+                assert low - 1e-9 <= spec.pose.z <= high + 1e-9
+                inside += 1
+            else:  # the window's end nearest the range
+                assert spec.pose.z == pytest.approx(window[1] if window[1] < low else window[0])
+        assert inside > 0 or category == "refrigerator", category
+
+
 @pytest.fixture(scope="module")
 def report(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """An evaluate-mdn-like folder: errors.csv with the network's ("Ours") and the refined
