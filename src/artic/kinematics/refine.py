@@ -180,6 +180,9 @@ HANDLE_RESIDUAL = 1.6
 #: sees the body's side, or through a gap the body's inside, behind the door's plane in
 #: its own coordinates) lie within the threshold of it; else the test abstains
 HANDLE_PLANE_SHARE = 0.5
+#: more of the door's outline than this share standing proud of its median plane is a
+#: surface (a frame round a recessed window or panel), which the handle must stand proud of
+HANDLE_SURFACE_SHARE = 0.15
 #: the binary opening of the proud pixels (rows, columns): isolated noise and one-row
 #: slivers along horizontal edges go, a vertical bar one pixel wide stays (a handle 1.5
 #: cm thick 2 m away in the 192x108 camera)
@@ -1182,12 +1185,17 @@ def handle_position(
     near = inside & (np.abs(local[:, 0] - lo[0]) < HANDLE_PROUD[1])
     if near.sum() < MIN_FACE_POINTS or core.sum() < MIN_FACE_POINTS:
         return None
-    offset = local[:, 0] - float(np.median(local[near, 0]))  # towards the camera is -x
+    offset = local[:, 0] - _door_plane(local, near)  # towards the camera is -x
     noise = 1.4826 * float(np.median(np.abs(offset[near])))
     threshold = max(HANDLE_PROUD[0], HANDLE_NOISE * noise)
     if float(np.mean(np.abs(offset[core]) < threshold)) < HANDLE_PLANE_SHARE:
         return None
     proud = inside & (offset < -threshold) & (offset > -HANDLE_PROUD[1])
+    if proud.sum() > HANDLE_SURFACE_SHARE * inside.sum():
+        # a surface, not a handle: a frame round a recessed window or panel (the median
+        # plane is the recess); the handle stands proud of the frame
+        offset = offset - float(np.median(offset[proud]))
+        proud = inside & (offset < -threshold) & (offset > -HANDLE_PROUD[1])
     mask = np.zeros(image.shape, dtype=bool)
     mask[rows[proud], cols[proud]] = True
     mask = ndimage.binary_opening(mask, structure=np.ones(HANDLE_OPENING, dtype=bool))
@@ -1204,6 +1212,25 @@ def handle_position(
         if len(y) >= HANDLE_PIXELS and compact and (best is None or len(y) > best[0]):
             best = (len(y), float(np.mean(y)))
     return None if best is None else best[1]
+
+
+def _door_plane(local: Array, near: NDArray[np.bool_]) -> Array:
+    """The door's front as the image has it, at each point (N,): the plane x = a + b y +
+    c z (door frame) fitted by least squares to the `near` points, refitted once without
+    those beyond 3 robust deviations (at least `LINE_FLOOR`; a handle's points). A
+    candidate's door a few degrees off the image's (its q or yaw) would otherwise have
+    the door's hinge or free edge standing proud of the hypothesis' plane like a handle."""
+    design = np.column_stack([np.ones(len(local)), local[:, 1], local[:, 2]])
+    keep = near.copy()
+    coef = np.zeros(3)
+    for _ in range(2):
+        coef = np.linalg.lstsq(design[keep], local[keep, 0], rcond=None)[0]
+        residual = np.abs(local[:, 0] - design @ coef)
+        limit = max(3.0 * 1.4826 * float(np.median(residual[keep])), LINE_FLOOR)
+        if (near & (residual < limit)).sum() < MIN_FACE_POINTS:
+            break
+        keep = near & (residual < limit)
+    return np.asarray(design @ coef)
 
 
 def handle_side(
