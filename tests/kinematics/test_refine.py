@@ -614,3 +614,51 @@ def test_refinement_fits_the_width_a_side_face_shows(chirality):
     assert result.refined, result.status
     assert result.label[COLUMNS.index("width")] == pytest.approx(truth.width, abs=0.015)
     assert np.linalg.norm(_origin(result.label) - _origin(_label(truth, "cabinet"))) < 0.015
+
+
+def _wall_over(below: float | None, edge_z: float = -0.3, x: float = 2.0) -> np.ndarray:
+    """A depth image of a vertical plane x = `x` facing the camera down to height
+    `edge_z`, and under it a surface at depth `below` (None: the background)."""
+    rays = CAMERA.ray_directions()
+    depth = np.full((CAMERA.height, CAMERA.width), x, dtype=np.float32)
+    under = rays[..., 2] * x < edge_z
+    depth[under] = 0.0 if below is None else below
+    return depth
+
+
+@pytest.mark.parametrize(("below", "counted"), [(None, True), (2.06, True), (1.8, False)])
+def test_a_face_ends_over_the_background_or_behind_it_not_at_an_occluder(below, counted):
+    """`_face_bottoms` on a plane ending at z = -0.3 m: the edge is read (to a pixel)
+    over the background or a plinth 6 cm behind, and not where a nearer surface hides
+    the plane's bottom (an opened door's lower part behind the body)."""
+    from artic.kinematics.refine import _face_bottoms
+
+    observed = _wall_over(below)
+    rays = CAMERA.ray_directions()
+    frame = np.eye(4)
+    frame[0, 3] = 2.0  # the plane x = 0 of this frame is x = 2 m
+    rows, cols = np.nonzero((rays[..., 2] * 2.0 > -0.2) & (rays[..., 2] * 2.0 < 0.0))
+    edges = _face_bottoms(rows, cols, frame, observed, rays)
+    if not counted:
+        assert len(edges) == 0
+        return
+    assert len(edges) == CAMERA.width
+    assert np.allclose(edges, -0.3, atol=2.0 / CAMERA.fy)
+
+
+def test_the_lift_is_read_only_off_a_level_edge_of_a_plausible_height():
+    from artic.kinematics.refine import MAX_LIFT, _Faces, _lift
+
+    h = _truth("cabinet", 1, 0.3)
+    empty = (np.zeros((0, 3)), np.zeros(0))
+
+    def faces(edges: list[float]) -> _Faces:
+        return _Faces(empty, empty, np.zeros(0), np.array(edges), ())
+
+    level = [-0.40, -0.401, -0.399, -0.402, -0.40, -0.398]
+    assert _lift(h, faces(level), base=-0.5) == pytest.approx(0.1, abs=0.002)
+    assert _lift(h, faces(level), base=-0.41) == 0.0  # under MIN_LIFT: the noise
+    assert _lift(h, faces(level), base=-0.4 - MAX_LIFT - 0.05) == 0.0  # a misread
+    ragged = [-0.40, -0.30, -0.45, -0.20, -0.41, -0.35]
+    assert _lift(h, faces(ragged), base=-0.5) == h.lift  # not a door's level edge
+    assert _lift(h, faces(level[:3]), base=-0.5) == h.lift  # too few columns

@@ -26,7 +26,10 @@ pose x, y, z, yaw, the body's depth, width, height, the chirality and each door'
      stays the network's;
    - the base height z from the bottom silhouette edge (`_bottom_edge`: every face that
      stands on the base ends there: the body's, and each door hinged at the base, not a
-     refrigerator's upper door); depth, width and height stay the network's;
+     refrigerator's upper door); the doors' lift above it (`_lift`: a plinth or kick
+     plate under the front, which the box model lacks, read off the doors' own bottom
+     edge; it moves the label's joint origins, not the rendered box); depth, width and
+     height stay the network's here;
 3. re-render and repeat (`ITERATIONS`, with a shrinking tolerance), keeping the round
    (or the start) with the lowest depth residual.
 
@@ -44,6 +47,8 @@ lie inside the mixture's interval (`interval_ok`; a candidate on a hinge side th
 component mean has, as with a model trained on one side, has no interval there and is
 judged by its residual alone), or when the chosen candidate's residual is not below the
 network's own: the returned estimate's residual is never larger than the network's.
+The chosen door candidate then has its width fitted too (`_refit_width`: one more build
+of the object; every candidate before it shares the network's width).
 
 On a nearly closed door (every door, for a refrigerator) the handle then has the last word
 on the hinge side (`handle_side`; the first door's handle, a refrigerator's lower one): a
@@ -52,7 +57,9 @@ door's front) lies near the edge away from the hinge. For the best candidate of 
 whose door is open less than `HANDLE_Q_MAX` (and whose residual is near the best), the
 pixels of the image in its own camera (`detail`: `artic predict` passes the image before
 it was reduced into the model's camera, where a knob is a pixel or two) that lie inside
-the candidate's door outline and stand proud of its front plane are opened (isolated
+the candidate's door outline and stand proud of its front plane (a plane fitted to
+those pixels, so that a candidate a few degrees off the door does not see its edge
+standing proud; a frame round a recessed window is that plane) are opened (isolated
 noise goes) and grouped into blobs; the largest compact one is the handle
 (`handle_position`). A candidate with the handle in its door's free part votes for its
 side, one with it by the hinge for the other side; a side every vote is for is chosen,
@@ -152,9 +159,12 @@ SIDE_MARGIN = 0.25
 #: a point below a face's lowest pixel is still on the face within this of its plane (m;
 #: `_face_bottoms`): a plinth recessed behind a door is farther
 LIFT_TOLERANCE = 0.025
-#: the doors' lift (`_lift`): 0 below this (m), at most this share of the object's height
+#: the doors' lift (`_lift`, m): 0 below MIN_LIFT (noise) or above MAX_LIFT (a misread:
+#: kitchen plinths and kick plates are 5-15 cm, cabinet legs up to about 15)
 MIN_LIFT = 0.015
-MAX_LIFT = 0.3
+MAX_LIFT = 0.2
+#: ... and read only when the doors' bottom edges agree: interquartile range at most this (m)
+LIFT_SPREAD = 0.03
 #: fewer observed pixels than this: not refined
 MIN_OBSERVED = 50
 #: the handle test (`handle_position`): pixels within the door's outline, widened across
@@ -516,9 +526,10 @@ def _face_bottoms(
     at the median x of those pixels): down the column from its lowest pixel, the face goes
     on while the points lie within `LIFT_TOLERANCE` of its plane (one pixel off it, the
     sensor's noise, does not end it); the edge is its last pixel's lower edge (as
-    `_bottom_edge`). Below it the background or another surface: a plinth recessed behind
-    a door, which the box model does not have. A column whose face reaches the image's
-    bottom border does not count."""
+    `_bottom_edge`). Below it the background or a surface behind the face's plane: a
+    plinth recessed behind a door, which the box model does not have. A column where a
+    nearer surface hides the face's bottom (the body in front of an opened door's lower
+    part) or whose face reaches the image's bottom border does not count."""
     height = observed.shape[0]
     if len(rows) < MIN_FACE_POINTS or height < 3:
         return np.zeros(0)
@@ -546,9 +557,16 @@ def _face_bottoms(
         if not running.any():
             break
         end = np.where(running, np.where(on_two, two, one), end)
+    below = np.minimum(end + 1, height - 1)
+    # what ends the face: the background, or a point behind its plane (seen from the camera)
+    normal, ray = frame[:3, 0], rays[below, col].astype(np.float64)
+    along = ray @ normal  # the plane's depth on the ray below: (plane + t . n) / (ray . n)
+    plane_depth = (plane + float(frame[:3, 3] @ normal)) / np.where(along == 0, np.nan, along)
+    depth = observed[below, col].astype(np.float64)
+    behind = (depth <= 0) | (depth > plane_depth + LIFT_TOLERANCE)
     step = float(rays[1, 0, 2] - rays[0, 0, 2])
     z = (rays[end, col, 2].astype(np.float64) + 0.5 * step) * observed[end, col]
-    return np.asarray(z[end + 1 < height])
+    return np.asarray(z[(end + 1 < height) & behind])
 
 
 def _bottom_edge(
@@ -806,14 +824,20 @@ def _lift(h: Hypothesis, faces: _Faces, base: float) -> float:
     edge gave (`_bottom_edge`): the median bottom edge of the doors' broad faces
     (`_face_bottoms`; not the body's front: a plinth recessed 3 cm behind it is within the
     noise's reach of its plane, where behind a door it is a door's thickness further)
-    minus the base, 0 below `MIN_LIFT` (the sensor's noise on an object
-    with no plinth) and at most `MAX_LIFT` of the object's height; the hypothesis' own
-    lift below `MIN_EDGE_PIXELS` columns. Legs or a wall-hung cabinet lift nothing: the
-    doors' bottom is the silhouette's there, and the base reads there too."""
-    if len(faces.door_bottom) < MIN_EDGE_PIXELS:
+    minus the base; 0 below `MIN_LIFT` (the sensor's noise on an object with no plinth)
+    and above `MAX_LIFT` (no plinth or kick plate is that tall: a misread); the hypothesis'
+    own lift below `MIN_EDGE_PIXELS` columns or when the edges' interquartile range exceeds
+    `LIFT_SPREAD` (a door's bottom edge is level, so its columns agree to a pixel or two).
+    Legs or a wall-hung cabinet lift nothing: the doors' bottom is the silhouette's there,
+    and the base reads there too."""
+    edges = faces.door_bottom
+    if len(edges) < MIN_EDGE_PIXELS:
         return h.lift
-    lift = float(np.median(faces.door_bottom)) - base
-    return min(lift, MAX_LIFT * h.height) if lift >= MIN_LIFT else 0.0
+    low, high = np.quantile(edges, [0.25, 0.75])
+    if high - low > LIFT_SPREAD:  # a door's bottom edge is level: these edges are not it
+        return h.lift
+    lift = float(np.median(edges)) - base
+    return lift if MIN_LIFT <= lift <= MAX_LIFT else 0.0
 
 
 def _fit_drawer(
