@@ -1008,8 +1008,10 @@ def refine(
     handle = None
     if category in SIDED:
         handle = handle_side(inside, columns, category, parts, image, view)
-    if handle is not None and handle != best.chirality:
-        best = min((c for c in inside if c.chirality == handle), key=lambda c: c.residual)
+    named = [c for c in inside if c.chirality == handle]
+    if handle is not None and handle != best.chirality and named:
+        # (a vote by the other side's candidate may name a side with no candidate inside)
+        best = min(named, key=lambda c: c.residual)
     best = _refit_width(best, observed, camera, category, columns, parts, lower, upper)
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
