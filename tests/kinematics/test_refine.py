@@ -66,6 +66,19 @@ def _label(h: Hypothesis, category: str, columns: list[str] = COLUMNS) -> np.nda
         renderer.close()
 
 
+def _refined(
+    start: Hypothesis, category: str, observed: np.ndarray
+) -> tuple[Hypothesis, float, np.ndarray]:
+    """`refine_hypothesis` from `start` on `observed`: the hypothesis, its residual and
+    its label (one-door `COLUMNS`)."""
+    renderer = PosedRenderer(start, category, PARTS, CAMERA)
+    try:
+        h, residual = refine_hypothesis(start, renderer, observed, CAMERA.ray_directions())
+        return h, residual, renderer.label(h, category, COLUMNS)
+    finally:
+        renderer.close()
+
+
 def _origin(label: np.ndarray) -> np.ndarray:
     return label[[COLUMNS.index(f"j0_origin_{a}") for a in "xyz"]]
 
@@ -119,12 +132,7 @@ def test_plane_fit_recovers_the_door_angle_and_the_hinge(category, chirality, q)
     observed = _image(truth, category)
     start = truth.with_pose(truth.x + 0.03, truth.y - 0.03, truth.z + 0.015, truth.yaw + 0.05,
                             (truth.qs[0] - 0.08,))  # fmt: skip
-    renderer = PosedRenderer(start, category, PARTS, CAMERA)
-    try:
-        h, residual = refine_hypothesis(start, renderer, observed, CAMERA.ray_directions())
-        refined = renderer.label(h, category, COLUMNS)
-    finally:
-        renderer.close()
+    h, residual, refined = _refined(start, category, observed)
     assert abs(math.degrees(h.yaw - truth.yaw)) < 1.0
     assert abs(math.degrees(h.qs[0] - truth.qs[0])) < 1.0
     hinge_error = np.linalg.norm(_origin(refined) - _origin(_label(truth, category)))
@@ -212,12 +220,7 @@ def test_plane_fit_within_the_sensor_noise(chirality, q=0.25):
                                   np.random.default_rng(0), image_fx=CAMERA.fx)  # fmt: skip
     start = truth.with_pose(truth.x + 0.03, truth.y - 0.03, truth.z + 0.015, truth.yaw + 0.05,
                             (truth.qs[0] - 0.08,))  # fmt: skip
-    renderer = PosedRenderer(start, "microwave", PARTS, CAMERA)
-    try:
-        h, _ = refine_hypothesis(start, renderer, observed, CAMERA.ray_directions())
-        refined = renderer.label(h, "microwave", COLUMNS)
-    finally:
-        renderer.close()
+    h, _, refined = _refined(start, "microwave", observed)
     assert abs(math.degrees(h.yaw - truth.yaw)) < 1.0
     assert abs(math.degrees(h.qs[0] - truth.qs[0])) < 1.0
     assert np.linalg.norm(_origin(refined) - _origin(_label(truth, "microwave"))) < 0.015
@@ -574,12 +577,7 @@ def test_a_door_standing_on_a_plinth_lifts_the_joint_origin_not_the_base(q):
     observed = _on_a_plinth(truth, lift, inset=0.05)
     start = truth.with_pose(truth.x + 0.02, truth.y - 0.02, truth.z + 0.01, truth.yaw + 0.03,
                             (truth.qs[0] - 0.05,))  # fmt: skip
-    renderer = PosedRenderer(start, "cabinet", PARTS, CAMERA)
-    try:
-        h, _ = refine_hypothesis(start, renderer, observed, CAMERA.ray_directions())
-        refined = renderer.label(h, "cabinet", COLUMNS)
-    finally:
-        renderer.close()
+    h, _, refined = _refined(start, "cabinet", observed)
     pixel = 1.5 / CAMERA.fy  # a pixel's height at the object's distance (m)
     assert abs(h.z - truth.z) < pixel  # the base: the plinth's bottom
     assert abs(h.lift - lift) < pixel
@@ -592,12 +590,7 @@ def test_a_door_standing_on_a_plinth_lifts_the_joint_origin_not_the_base(q):
 def test_no_plinth_no_lift():
     truth = _truth("cabinet", -1, 0.6, yaw=-0.2, y=0.3)
     start = truth.with_pose(truth.x + 0.02, truth.y, truth.z + 0.01, truth.yaw, truth.qs)
-    renderer = PosedRenderer(start, "cabinet", PARTS, CAMERA)
-    try:
-        h, _ = refine_hypothesis(start, renderer, _image(truth, "cabinet"),
-                                 CAMERA.ray_directions())  # fmt: skip
-    finally:
-        renderer.close()
+    h, _, _ = _refined(start, "cabinet", _image(truth, "cabinet"))
     assert h.lift == 0.0
 
 

@@ -716,9 +716,7 @@ def _fit(
 ) -> Hypothesis:
     """One least-squares step (module docstring, step 2) from the grouped points; a
     drawer's without its body's front rim unless `rim` (`refine_hypothesis`)."""
-    inl_front = _ransac(faces.front[0], seed)
-    inl_side = _ransac(faces.side[0], seed + 1)
-    inl_doors = [_ransac(pts, seed + 2 + j) for j, (pts, _) in enumerate(faces.doors)]
+    inl_front, inl_side, inl_doors = _face_inliers(faces, seed)
     if h.joint_type == "prismatic":
         if not rim:
             inl_front = np.zeros_like(inl_front)
@@ -758,6 +756,16 @@ def _fit(
     base = _base_height(h, faces)
     h = dataclasses.replace(h, lift=_lift(h, faces, base))
     return h.with_pose(float(t[0]), float(t[1]), base, yaw, tuple(qs))
+
+
+def _face_inliers(
+    faces: _Faces, seed: int
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], list[NDArray[np.bool_]]]:
+    """RANSAC inliers (`_ransac`) of the body's front, its side and each door's faces."""
+    inl_front = _ransac(faces.front[0], seed)
+    inl_side = _ransac(faces.side[0], seed + 1)
+    inl_doors = [_ransac(pts, seed + 2 + j) for j, (pts, _) in enumerate(faces.doors)]
+    return inl_front, inl_side, inl_doors
 
 
 def search_opening(
@@ -1008,10 +1016,10 @@ def refine(
     handle = None
     if category in SIDED:
         handle = handle_side(inside, columns, category, parts, image, view)
-    named = [c for c in inside if c.chirality == handle]
-    if handle is not None and handle != best.chirality and named:
-        # (a vote by the other side's candidate may name a side with no candidate inside)
-        best = min(named, key=lambda c: c.residual)
+    if handle is not None and handle != best.chirality:
+        # a vote by the other side's candidate may name a side with no candidate inside
+        named = [c for c in inside if c.chirality == handle]
+        best = min(named, key=lambda c: c.residual) if named else best
     best = _refit_width(best, observed, camera, category, columns, parts, lower, upper)
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
@@ -1121,9 +1129,7 @@ def _fit_width(h: Hypothesis, faces: _Faces, doors: Sequence[_Door]) -> Hypothes
     body's front on x = -depth/2, a side on y = +-width/2 and each door on its plane
     through its hinge at +-width/2 (object frame), with `_fit`'s pull towards the
     hypothesis (the width's too). None without a side face and a door face to fix it."""
-    inl_front = _ransac(faces.front[0], 0)
-    inl_side = _ransac(faces.side[0], 1)
-    inl_doors = [_ransac(pts, 2 + j) for j, (pts, _) in enumerate(faces.doors)]
+    inl_front, inl_side, inl_doors = _face_inliers(faces, 0)
     if inl_side.sum() < MIN_FACE_POINTS or not any(k.sum() >= MIN_DOOR_POINTS for k in inl_doors):
         return None
     rot = rot_z(h.yaw)
@@ -1247,15 +1253,12 @@ def _door_plane(local: Array, near: NDArray[np.bool_]) -> Array:
     candidate's door a few degrees off the image's (its q or yaw) would otherwise have
     the door's hinge or free edge standing proud of the hypothesis' plane like a handle."""
     design = np.column_stack([np.ones(len(local)), local[:, 1], local[:, 2]])
-    keep = near.copy()
-    coef = np.zeros(3)
-    for _ in range(2):
+    coef = np.linalg.lstsq(design[near], local[near, 0], rcond=None)[0]
+    residual = np.abs(local[:, 0] - design @ coef)
+    limit = max(3.0 * 1.4826 * float(np.median(residual[near])), LINE_FLOOR)
+    keep = near & (residual < limit)
+    if keep.sum() >= MIN_FACE_POINTS:
         coef = np.linalg.lstsq(design[keep], local[keep, 0], rcond=None)[0]
-        residual = np.abs(local[:, 0] - design @ coef)
-        limit = max(3.0 * 1.4826 * float(np.median(residual[keep])), LINE_FLOOR)
-        if (near & (residual < limit)).sum() < MIN_FACE_POINTS:
-            break
-        keep = near & (residual < limit)
     return np.asarray(design @ coef)
 
 
