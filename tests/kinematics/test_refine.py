@@ -23,6 +23,8 @@ from artic.artifacts.depth_dataset import DepthDataset
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics.refine import (
     HANDLE_FREE,
+    HANDLE_Q_MAX,
+    INTERVAL_MARGIN_Q,
     SIDE_MARGIN,
     Candidate,
     Hypothesis,
@@ -336,6 +338,32 @@ def test_an_interval_that_excludes_every_fit_falls_back_and_says_why():
     np.testing.assert_array_equal(result.label, estimate)
 
 
+def test_a_door_the_network_reads_as_closed_takes_the_images_opening():
+    """Out of its training domain the network's q is the least reliable of what the planes
+    read (issue 24: a Table A.1 cabinet's door open 22 deg, the 99% interval [-8, 13]
+    deg): a refined q up to `INTERVAL_MARGIN_Q` past the interval counts; the yaw, which
+    rules out mirror images, keeps its narrow margin."""
+    truth = _truth("cabinet", 1, math.radians(22.0), yaw=-0.4, y=0.2)
+    observed = _image(truth, "cabinet")
+    guess = truth.with_pose(truth.x + 0.02, truth.y, truth.z, truth.yaw + 0.02, (0.05,))
+    estimate = _label(guess, "cabinet")
+    components = np.stack([estimate, _label(guess.mirrored(), "cabinet")])
+    lower, upper = estimate - 0.05, estimate + 0.05
+    q = COLUMNS.index("j0_q")
+    lower[q], upper[q] = math.radians(-8.0), math.radians(13.0)
+    result = refine(observed, CAMERA, "cabinet", COLUMNS, estimate, np.array([0.6, 0.4]),
+                    components, lower, upper)  # fmt: skip
+    assert result.refined, result.status
+    assert result.label[COLUMNS.index("chirality")] == 1
+    assert abs(math.degrees(result.label[q]) - 22.0) < 1.0
+    # past the margin: no candidate counts
+    upper[q] = truth.qs[0] - INTERVAL_MARGIN_Q - math.radians(2.0)
+    lower[q] = upper[q] - 0.2
+    result = refine(observed, CAMERA, "cabinet", COLUMNS, estimate, np.array([0.6, 0.4]),
+                    components, lower, upper)  # fmt: skip
+    assert not any(c.inside_interval and c.chirality == 1 for c in result.candidates)
+
+
 def test_refinement_is_deterministic():
     truth = _truth("cabinet", -1, 0.5)
     observed = _image(truth, "cabinet")
@@ -445,6 +473,22 @@ def test_the_handle_names_the_hinge_side_of_a_closed_door(chirality):
     no_handle = _fine_image(truth, "cabinet", flat)
     assert handle_position(truth, "cabinet", flat, no_handle, FINE) is None
     assert handle_side(candidates, COLUMNS, "cabinet", flat, no_handle, FINE) is None
+
+
+@pytest.mark.parametrize("chirality", [1, -1])
+def test_candidates_that_read_a_closed_door_a_little_open_still_vote(chirality):
+    """Both sides' candidates read a closed door as open 12 deg (a panelled door of issue
+    24's second generator, open 2 deg): under `HANDLE_Q_MAX` they still vote, and the
+    handle names the true side."""
+    assert math.radians(12.0) < HANDLE_Q_MAX
+    truth = _truth("cabinet", chirality, 0.02, yaw=0.15)
+    observed = _fine_image(truth, "cabinet")
+    read = truth.with_pose(truth.x, truth.y, truth.z, truth.yaw, (math.radians(12.0),))
+    candidates = [
+        Candidate(0, 0.5, -chirality, 0.010, True, _label(read.mirrored(), "cabinet")),
+        Candidate(0, 0.5, chirality, 0.0102, True, _label(read, "cabinet")),
+    ]
+    assert handle_side(candidates, COLUMNS, "cabinet", PARTS, observed, FINE) == chirality
 
 
 @pytest.mark.parametrize("chirality", [1, -1])
