@@ -30,6 +30,7 @@ from artic.kinematics.refine import (
     Hypothesis,
     PosedRenderer,
     _choose_side,
+    _ransac,
     depth_residual,
     handle_position,
     handle_side,
@@ -362,6 +363,29 @@ def test_a_door_the_network_reads_as_closed_takes_the_images_opening():
     result = refine(observed, CAMERA, "cabinet", COLUMNS, estimate, np.array([0.6, 0.4]),
                     components, lower, upper)  # fmt: skip
     assert not any(c.inside_interval and c.chirality == 1 for c in result.candidates)
+
+
+def test_every_ransac_runs_on_one_openmp_thread(monkeypatch):
+    """Open3D's RANSAC threads draw their samples in the order they run: on more than one
+    thread the inliers, and the refined estimate, changed between two runs of the same
+    image (the width fit's RANSAC ran outside the rounds' one-thread limit). Whoever
+    calls it, `_ransac` runs it on one."""
+    from threadpoolctl import threadpool_info
+
+    from artic.render.open3d_core import open3d_core
+
+    cloud_type = open3d_core().geometry.PointCloud
+    segment_plane = cloud_type.segment_plane
+    threads: list[int] = []
+
+    def spy(self, *args, **kwargs):
+        threads.extend(i["num_threads"] for i in threadpool_info() if i["user_api"] == "openmp")
+        return segment_plane(self, *args, **kwargs)
+
+    monkeypatch.setattr(cloud_type, "segment_plane", spy)
+    points = np.random.default_rng(0).normal(size=(200, 3)) * [1.0, 1.0, 0.001]
+    assert _ransac(points, 0).sum() > 100
+    assert threads and set(threads) == {1}, threads
 
 
 def test_refinement_is_deterministic():

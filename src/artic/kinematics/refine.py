@@ -619,7 +619,9 @@ def _bottom_edge(
 
 
 def _ransac(points: Array, seed: int) -> NDArray[np.bool_]:
-    """Inliers (N,) of the dominant plane (Open3D's RANSAC); all False below
+    """Inliers (N,) of the dominant plane (Open3D's RANSAC, seeded, on one OpenMP thread:
+    its threads draw their samples in whatever order they run, so on more than one the
+    inliers, and the refined estimate, change from run to run); all False below
     `MIN_FACE_POINTS` points."""
     keep = np.zeros(len(points), dtype=bool)
     if len(points) < MIN_FACE_POINTS:
@@ -629,7 +631,8 @@ def _ransac(points: Array, seed: int) -> NDArray[np.bool_]:
     o3d = open3d_core()
     o3d.utility.random.seed(seed)
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    _, inliers = cloud.segment_plane(RANSAC_DISTANCE, 3, RANSAC_ITERATIONS)
+    with _threadpools().limit(limits=1, user_api="openmp"):  # ~0.04 ms
+        _, inliers = cloud.segment_plane(RANSAC_DISTANCE, 3, RANSAC_ITERATIONS)
     keep[np.asarray(inliers, dtype=np.int64)] = True
     return keep if keep.sum() >= MIN_FACE_POINTS else np.zeros(len(points), dtype=bool)
 
@@ -913,8 +916,8 @@ def refine_hypothesis(
     h = start
     image, door_poses = renderer.render(h)
     best = (h, depth_residual(image.depth, observed))
-    # Open3D's RANSAC on one OpenMP thread: the same inliers on any machine, and on a
-    # busy 2-core host ~0.1 ms a fit instead of ~6 ms of thread start-up
+    # Open3D on one OpenMP thread through the rounds: on a busy 2-core host ~0.1 ms a
+    # plane fit instead of ~6 ms of thread start-up (`_ransac` holds it to one anyway)
     with _threadpools().limit(limits=1, user_api="openmp"):
         for k in range(ITERATIONS):
             tolerance = TOLERANCES[min(k, len(TOLERANCES) - 1)]
