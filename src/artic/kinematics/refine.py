@@ -631,7 +631,8 @@ def _ransac(points: Array, seed: int) -> NDArray[np.bool_]:
     o3d = open3d_core()
     o3d.utility.random.seed(seed)
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    with _threadpools().limit(limits=1, user_api="openmp"):  # ~0.04 ms
+    # ~0.04 ms; on a busy 2-core host ~0.1 ms a fit instead of ~6 ms of thread start-up
+    with _threadpools().limit(limits=1, user_api="openmp"):
         _, inliers = cloud.segment_plane(RANSAC_DISTANCE, 3, RANSAC_ITERATIONS)
     keep[np.asarray(inliers, dtype=np.int64)] = True
     return keep if keep.sum() >= MIN_FACE_POINTS else np.zeros(len(points), dtype=bool)
@@ -916,20 +917,17 @@ def refine_hypothesis(
     h = start
     image, door_poses = renderer.render(h)
     best = (h, depth_residual(image.depth, observed))
-    # Open3D on one OpenMP thread through the rounds: on a busy 2-core host ~0.1 ms a
-    # plane fit instead of ~6 ms of thread start-up (`_ransac` holds it to one anyway)
-    with _threadpools().limit(limits=1, user_api="openmp"):
-        for k in range(ITERATIONS):
-            tolerance = TOLERANCES[min(k, len(TOLERANCES) - 1)]
-            faces = _faces(h, image, door_poses, renderer.doors, observed, rays, tolerance,
-                           renderer.door_thickness)  # fmt: skip
-            h = _fit(h, faces, renderer.doors, seed, rim=k > 0)
-            if k == 0 and h.joint_type == "prismatic":
-                h = search_opening(h, renderer, observed)
-            image, door_poses = renderer.render(h)
-            residual = depth_residual(image.depth, observed)
-            if residual < best[1]:
-                best = (h, residual)
+    for k in range(ITERATIONS):
+        tolerance = TOLERANCES[min(k, len(TOLERANCES) - 1)]
+        faces = _faces(h, image, door_poses, renderer.doors, observed, rays, tolerance,
+                       renderer.door_thickness)  # fmt: skip
+        h = _fit(h, faces, renderer.doors, seed, rim=k > 0)
+        if k == 0 and h.joint_type == "prismatic":
+            h = search_opening(h, renderer, observed)
+        image, door_poses = renderer.render(h)
+        residual = depth_residual(image.depth, observed)
+        if residual < best[1]:
+            best = (h, residual)
     return best
 
 
