@@ -104,6 +104,21 @@ def test_train_mdn_records_what_the_model_was_trained_on(tiny_model, tiny_depth)
     card = (tiny_model / "model_card.md").read_text()
     assert "- trained on (labels of the" in card and "chirality +1" in card
     assert "one hinge side only" in card and "training camera:" in card
+    # the doors: drawn 2-5 cm thick (conf/common/category/microwave.yaml), built at 3.5 cm
+    assert ds.info.door_thickness == domain.door_thickness == (0.02, 0.05)
+    assert "- doors 2.0 to 5.0 cm thick; the refinement builds them 3.50 cm thick" in card
+    assert Predictor.load(tiny_model / "model.pt").parts.door_thickness == pytest.approx(0.035)
+
+
+def test_a_model_without_the_door_record_refines_with_2_cm_doors(tiny_model, tmp_path):
+    """Models trained before the door thickness was recorded were trained on 2 cm doors."""
+
+    def forget(meta):
+        del meta["training_domain"]["door_thickness"]
+
+    older = _with_meta(tiny_model, tmp_path / "model.pt", forget)
+    assert Predictor.load(older).parts.door_thickness == 0.02
+    assert Predictor.load(older).domain is not None
 
 
 def test_an_in_range_image_gives_no_warning(model_pt, training_image):

@@ -723,3 +723,32 @@ def test_the_lift_is_read_only_off_a_level_edge_of_a_plausible_height():
     ragged = [-0.40, -0.30, -0.45, -0.20, -0.41, -0.35]
     assert _lift(h, faces(ragged), base=-0.5) == h.lift  # not a door's level edge
     assert _lift(h, faces(level[:3]), base=-0.5) == h.lift  # too few columns
+
+
+@pytest.mark.parametrize("chirality", [1, -1])
+def test_the_refinement_builds_the_doors_as_thick_as_it_is_told(chirality):
+    """A closed microwave door 4.5 cm thick: its front and the control panel's are all the
+    image shows, and the hinge lies on the body's front, a door's thickness behind them.
+    Refined with doors of that thickness (`parts`, what `Predictor.parts` passes), the
+    hinge is found along the front's normal; with 2 cm doors, it lies 2.5 cm in front of
+    the body. (Across the front, where no side is in view, the thickness changes nothing.)"""
+    thick = PartsConfig(door_thickness=0.045)
+    truth = _truth("microwave", chirality, 0.02, yaw=0.2 * chirality)
+    with make_backend("raycast", CAMERA) as backend:
+        observed = backend.render(build(truth.spec("microwave", thick)), np.array(truth.qs)).depth
+    start = truth.with_pose(truth.x - 0.03, truth.y + 0.01, truth.z, truth.yaw + 0.03, (0.1,))
+    errors = {}
+    for parts in (thick, PARTS):
+        renderer = PosedRenderer(truth, "microwave", thick, CAMERA)
+        try:
+            true_origin = _origin(renderer.label(truth, "microwave", COLUMNS))
+        finally:
+            renderer.close()
+        estimate = _label(start, "microwave")
+        result = refine(observed, CAMERA, "microwave", COLUMNS, estimate, np.array([1.0]),
+                        estimate[None], *_wide(estimate), parts=parts)  # fmt: skip
+        assert result.refined, result.status
+        normal = np.array([math.cos(truth.yaw), math.sin(truth.yaw), 0.0])  # object x
+        errors[parts.door_thickness] = float((_origin(result.label) - true_origin) @ normal)
+    assert abs(errors[0.045]) < 0.005
+    assert errors[0.02] == pytest.approx(-0.025, abs=0.005)

@@ -152,3 +152,25 @@ def test_pose_outside_view_raises(camera: CameraIntrinsics) -> None:
     behind = PoseRanges(x=(-2.0, -1.0), y=(-0.5, 0.5), z=(0.0, 0.1), yaw=(0.0, 0.0))
     with pytest.raises(ValueError, match="pose"):
         sample_pose(behind, 0.5, camera, np.random.default_rng(0))
+
+
+def test_door_thickness_is_drawn_last_within_its_range(configs: Configs, camera: CameraIntrinsics):
+    """A category with `geometry.door_thickness` draws each object's door over the range,
+    after every other number: with the range removed, the same generator state gives the
+    same object with `parts.door_thickness`."""
+    cfg = configs["microwave"]
+    assert cfg.geometry.door_thickness is not None
+    plain_geometry = cfg.geometry.model_copy(update={"door_thickness": None})
+    fixed = cfg.model_copy(update={"geometry": plain_geometry})
+    drawn = []
+    for seed in range(40):
+        spec = sample_spec(cfg, camera, seed, np.random.default_rng(seed))
+        plain = sample_spec(fixed, camera, seed, np.random.default_rng(seed))
+        lo, hi = cfg.geometry.door_thickness
+        assert lo <= spec.parts.door_thickness <= hi
+        assert plain.parts.door_thickness == cfg.parts.door_thickness
+        assert spec.model_copy(update={"parts": plain.parts}) == plain
+        drawn.append(spec.parts.door_thickness)
+    assert np.ptp(drawn) > 0.5 * (hi - lo), "spread over the range"
+    assert cfg.door_thickness_range() == (lo, hi)
+    assert fixed.door_thickness_range() == (cfg.parts.door_thickness,) * 2

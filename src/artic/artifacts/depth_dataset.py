@@ -84,6 +84,8 @@ class DepthDatasetInfo(BaseModel):
     images: int | None = None
     objects: int | None = None
     configurations_per_object: int | None = None
+    #: [min, max] of the objects' door thickness, metres (None: written before it was)
+    door_thickness: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)

@@ -104,6 +104,7 @@ def train_chunk(cfg: TrainMdnConfig, inputs: dict[str, Path], chunk: int, tmp: P
             ds.info.dof,
             f"labels of the {len(train)} training images",
             ds.info.noise,
+            ds.info.door_thickness,
         ),
     }
     save_model_file(

@@ -52,6 +52,7 @@ from artic.kinematics.preprocess import InputPipeline
 from artic.kinematics.refine import INTERVAL_LEVEL, Refinement, refine, side_weight
 from artic.kinematics.targets import TargetCodec
 from artic.objects.labels import joint_column, joint_vector
+from artic.objects.spec import PartsConfig
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +78,9 @@ class TrainingDomain(BaseModel):
     ranges: dict[str, tuple[float, float]]
     cameras: list[CameraIntrinsics]
     noise: bool | None = None
+    #: [min, max] of the training objects' door thickness, metres (the depth dataset's;
+    #: None for a model trained before it was recorded: every door was 2 cm thick)
+    door_thickness: tuple[float, float] | None = None
 
 
 def training_domain(
@@ -86,9 +90,11 @@ def training_domain(
     dof: int,
     source: str,
     noise: bool | None = None,
+    door_thickness: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
     """`TrainingDomain` of training labels (N, L) in `columns` order, as plain data (what
-    a `weights_only` model file can hold). `source` says where the labels come from."""
+    a `weights_only` model file can hold). `source` says where the labels come from;
+    `door_thickness` the training objects' range (`DepthDatasetInfo.door_thickness`)."""
     col = {c: i for i, c in enumerate(columns)}
     keys = [*DOMAIN_COLUMNS, *(joint_column(j, "q") for j in range(dof))]
     values = {k: labels[:, col[k]] for k in keys}
@@ -102,6 +108,7 @@ def training_domain(
         ranges=ranges,
         cameras=[camera],
         noise=noise,
+        door_thickness=door_thickness,
     )
     return domain.model_dump(mode="json")
 
@@ -129,12 +136,29 @@ def domain_card_lines(domain: dict[str, Any], joint_type: str) -> list[str]:
         + "; ".join(_camera_text(c) for c in d.cameras)
         + ("" if d.noise is None else f" ({'with' if d.noise else 'without'} sensor noise)"),
     ]
+    if d.door_thickness is not None:
+        lo, hi = d.door_thickness
+        lines.append(
+            f"- doors {lo * 100:.1f} to {hi * 100:.1f} cm thick; the refinement builds them "
+            f"{refinement_door_thickness(d) * 100:.2f} cm thick (docs/kinematics.md)"
+        )
     if len(d.chiralities) == 1:
         lines.append(
             f"- one hinge side only (chirality {d.chiralities[0]:+d}, docs/objects.md): an object "
             "hinged on the other side is answered as its mirror image"
         )
     return lines
+
+
+def refinement_door_thickness(domain: TrainingDomain | None) -> float:
+    """The door thickness (m) the refinement builds its hypotheses with: the middle of the
+    training objects' range (a closed door's front and the body's front, where the hinge
+    is, lie a door's thickness apart, which the image does not show: docs/kinematics.md),
+    `PartsConfig`'s default for a model that did not record it (trained on 2 cm doors)."""
+    if domain is None or domain.door_thickness is None:
+        return PartsConfig().door_thickness
+    lo, hi = domain.door_thickness
+    return 0.5 * (lo + hi)
 
 
 #: the levels of `describe`'s `intervals`
@@ -284,8 +308,14 @@ class Predictor:
             np.asarray(observed, dtype=np.float32), self.camera, self.category,
             list(self.codec.columns), label, mix.log_pi[0].exp().double().numpy(),
             self.codec.decode(mix.mu[0].numpy()), self.codec.decode(lower[0].numpy()),
-            self.codec.decode(upper[0].numpy()), detail=detail,
+            self.codec.decode(upper[0].numpy()), parts=self.parts, detail=detail,
         )  # fmt: skip
+
+    @property
+    def parts(self) -> PartsConfig:
+        """The part constants the refinement builds its hypotheses with: the defaults, the
+        doors `refinement_door_thickness` thick."""
+        return PartsConfig(door_thickness=refinement_door_thickness(self.domain))
 
     def _origin(self, joint: int) -> list[int]:
         return [self.codec.columns.index(c) for c in joint_vector(joint, "origin")]

@@ -58,6 +58,11 @@ class GeometryRanges(_Frozen):
     depth: Range = Field(description="extent along the object's x (front to back), metres")
     width: Range = Field(description="extent along the object's y (side to side), metres")
     height: Range = Field(description="extent along the object's z (bottom to top), metres")
+    door_thickness: Range | None = Field(
+        default=None,
+        description="the doors' (drawer fronts') thickness drawn per object, metres (ours, "
+        "not Table A.1); None: `parts.door_thickness` for every object",
+    )
 
 
 class PoseRanges(_Frozen):
@@ -131,6 +136,11 @@ class CategoryConfig(_Frozen):
         min_length=1, description="hinge sides drawn uniformly; [1] where it has no meaning"
     )
     parts: PartsConfig = Field(default=PartsConfig(), description="part constants")
+
+    def door_thickness_range(self) -> tuple[float, float]:
+        """[min, max] of its objects' door thickness, metres (`sample_spec`)."""
+        fixed = self.parts.door_thickness
+        return self.geometry.door_thickness or (fixed, fixed)
 
 
 class Pose(_Frozen):
@@ -216,14 +226,20 @@ def sample_spec(
     """Draw one object of category `cfg` (thesis Appendix A, Tables A.1 and A.2).
 
     Dimensions are independent uniforms over Table A.1; chirality is uniform over
-    `cfg.chirality`; the pose comes from `sample_pose`. Only `rng` is used, so the same
-    generator state gives the same spec. Joint limits are the configuration range.
+    `cfg.chirality`; the pose comes from `sample_pose`; the door thickness, when the
+    category gives a range (`GeometryRanges.door_thickness`), is uniform over it, drawn
+    last (a category without one draws the numbers it always did). Only `rng` is used, so
+    the same generator state gives the same spec. Joint limits are the configuration range.
     """
     depth = _uniform(rng, cfg.geometry.depth)
     width = _uniform(rng, cfg.geometry.width)
     height = _uniform(rng, cfg.geometry.height)
     chirality = cfg.chirality[int(rng.integers(len(cfg.chirality)))]
     pose = sample_pose(cfg.pose, height, camera, rng)
+    parts = cfg.parts
+    if cfg.geometry.door_thickness is not None:
+        thickness = _uniform(rng, cfg.geometry.door_thickness)
+        parts = PartsConfig.model_validate(parts.model_dump() | {"door_thickness": thickness})
     return ObjectSpec(
         category=cfg.name,
         index=index,
@@ -235,5 +251,5 @@ def sample_spec(
         chirality=chirality,
         pose=pose,
         joint_limits=(cfg.configuration,) * cfg.dof,
-        parts=cfg.parts,
+        parts=parts,
     )

@@ -33,6 +33,20 @@ def camera_of(cfg: RenderDepthConfig, ds: ObjectDataset) -> CameraIntrinsics:
     return cfg.camera if cfg.camera is not None else ds.camera
 
 
+def _door_thickness(ds: ObjectDataset) -> list[float] | None:
+    """[min, max] door thickness (m) of the generating config's category
+    (`CategoryConfig.door_thickness_range`); None when its manifest does not say."""
+    from pydantic import ValidationError
+
+    from artic.objects.spec import CategoryConfig
+
+    try:
+        category = CategoryConfig.model_validate(ds.manifest.config["category"])
+    except (KeyError, TypeError, ValidationError):
+        return None
+    return list(category.door_thickness_range())
+
+
 def encode_depth(depth: NDArray[np.float32], encoding: str) -> NDArray[np.generic]:
     from artic.render.noise import depth_to_uint16_mm
 
@@ -182,6 +196,9 @@ def index_shards(
         "images": len(rows),
         "objects": len(ds.rows),
         "configurations_per_object": cfg.render.configurations,
+        # the doors' thickness the objects were built with (a model's refinement builds its
+        # doors at the middle of it: kinematics/predict.py)
+        "door_thickness": _door_thickness(ds),
     }
     sheet = None
     if preview:
