@@ -66,7 +66,9 @@ side, one with it by the hinge for the other side; a side every vote is for is c
 with its lowest-residual candidate. A door with no handle, or one too far away for its
 handle to stand out of the sensor's noise, leaves the choice to the residuals. On a nearly
 closed door the two sides' renders differ by little more than the handle, which the
-residual over the whole object hardly weighs (docs/reproduction.md, issue 24).
+residual over the whole object hardly weighs (docs/reproduction.md, issue 24). A
+microwave's control panel (`panel_side`) has the word when the handle names no side: a
+candidate on the wrong side puts its panel over the door's window, which reads recessed.
 
 A drawer (`JOINT_TYPES`) takes the same rounds with its front in place of the door's
 plane, one start per component (no hinge sides, no handle test), and a search on the
@@ -206,6 +208,22 @@ HANDLE_OPENING = (2, 1)
 #: a handle this far across the door from the hinge (as a share of its width) or further
 #: is at the free edge
 HANDLE_FREE = 0.65
+
+#: the categories with a control panel beside the door's free edge, flush with the closed
+#: door's front (`panel_side`)
+PANEL_BESIDE = ("microwave",)
+#: in `panel_side`, how far a candidate's control panel reads recessed: the median of
+#: (observed - rendered) depth over its pixels (the middle `PANEL_ROWS` of its height,
+#: at least `MIN_PANEL_PIXELS`); a side is named when the other side's panel reads
+#: recessed by more than `PANEL_RECESS` (m) and its own at least `PANEL_MARGIN` (m)
+#: less, both candidates' doors open less than `PANEL_Q_MAX`. Only a recess counts: a
+#: door a few degrees open stands proud before the panel's end of the front, so a
+#: candidate whose panel lies there reads it proud whichever side is right
+PANEL_RECESS = 0.003
+PANEL_MARGIN = 0.004
+PANEL_Q_MAX = math.radians(8.0)
+PANEL_ROWS = (0.2, 0.8)
+MIN_PANEL_PIXELS = 10
 
 Array = NDArray[np.float64]
 
@@ -1023,6 +1041,10 @@ def refine(
     handle = None
     if category in SIDED:
         handle = handle_side(inside, columns, category, parts, image, view)
+    panel = None
+    if handle is None:
+        panel = panel_side(inside, columns, category, parts, observed, camera)
+        handle = panel
     if handle is not None and handle != best.chirality:
         # a vote by the other side's candidate may name a side with no candidate inside
         named = [c for c in inside if c.chirality == handle]
@@ -1034,7 +1056,7 @@ def refine(
                           tuple(candidates))  # fmt: skip
     status = f"refined: component {best.component}, chirality {best.chirality:+d}"
     if handle is not None:
-        status += " (the handle's side)"
+        status += " (the control panel's side)" if panel is not None else " (the handle's side)"
     return Refinement(best.label, True, status, residual_network, best.residual, tuple(candidates))
 
 
@@ -1299,6 +1321,77 @@ def handle_side(
         elif at is not None and at <= 1.0 - HANDLE_FREE:
             votes.add(-side)
     return votes.pop() if len(votes) == 1 else None
+
+
+def panel_recess(
+    h: Hypothesis,
+    category: str,
+    parts: PartsConfig,
+    observed: NDArray[np.floating],
+    camera: CameraIntrinsics,
+) -> float | None:
+    """The median of (observed - rendered) depth (m) over the control panel of `h` (the
+    body's pixels on the panel's front, the middle `PANEL_ROWS` of its height) in the
+    model's camera; None below `MIN_PANEL_PIXELS` pixels."""
+    renderer = PosedRenderer(h, category, parts, camera)
+    try:
+        image, _ = renderer.render(h)
+    finally:
+        renderer.close()
+    rendered = image.depth
+    rows, cols = np.nonzero((rendered > 0) & (image.part_mask == 1) & (observed > 0))
+    points = camera.ray_directions()[rows, cols].astype(np.float64) * rendered[rows, cols, None]
+    pose = h.pose_matrix()
+    local = (points - pose[:3, 3]) @ pose[:3, :3]
+    up = local[:, 2] / h.height
+    on = (
+        (local[:, 0] < -h.depth / 2 - parts.door_thickness / 2)
+        & (up > PANEL_ROWS[0])
+        & (up < PANEL_ROWS[1])
+    )
+    if on.sum() < MIN_PANEL_PIXELS:
+        return None
+    return float(np.median(observed[rows[on], cols[on]] - rendered[rows[on], cols[on]]))
+
+
+def panel_side(
+    candidates: list[Candidate],
+    columns: list[str],
+    category: str,
+    parts: PartsConfig,
+    observed: NDArray[np.floating],
+    camera: CameraIntrinsics,
+) -> int | None:
+    """The hinge side the control panel names, for a nearly closed door with a panel
+    beside its free edge (`PANEL_BESIDE`): the two sides' candidates (each side's lowest
+    residual, within `HANDLE_RESIDUAL` times the lowest, its door open less than
+    `PANEL_Q_MAX`) put the panel at opposite ends of one front. A door with a window recessed
+    in its frame (or one the sensor sees through, to the mesh behind) makes the end that
+    is the door read recessed where a candidate puts its panel there (`panel_recess`),
+    while the end that is the panel reads flush (or proud: its buttons). The side whose
+    panel reads at least `PANEL_MARGIN` less recessed is named when the other's reads
+    recessed by more than `PANEL_RECESS`; None otherwise (a flat door, the artic
+    generator's, whose handle decides; a door without a window)."""
+    if category not in PANEL_BESIDE:
+        return None
+    floor = min((c.residual for c in candidates), default=math.inf)
+    recess: dict[int, float] = {}
+    for side in (1, -1):
+        same = [c for c in candidates if c.chirality == side]
+        if not same:
+            return None
+        best = min(same, key=lambda c: c.residual)
+        h = Hypothesis.from_label(best.label, columns)
+        if max(h.qs) >= PANEL_Q_MAX or best.residual > HANDLE_RESIDUAL * floor:
+            return None
+        value = panel_recess(h, category, parts, observed, camera)
+        if value is None:
+            return None
+        recess[side] = value
+    for side in (1, -1):
+        if recess[-side] > PANEL_RECESS and recess[side] < recess[-side] - PANEL_MARGIN:
+            return side
+    return None
 
 
 def _side(h: Hypothesis, chirality: int) -> Hypothesis:
