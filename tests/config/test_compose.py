@@ -38,13 +38,17 @@ def test_validation_error_names_the_field():
 
 
 def test_thesis_category_variants_are_the_generators_data_under_the_same_name():
-    for name in ("cabinet", "cabinet2", "microwave"):
+    for name in ("cabinet", "cabinet2", "microwave", "refrigerator"):
         default = compose("generate_dataset", [f"category={name}"])
         thesis = compose("generate_dataset", [f"category=thesis/{name}"])
         assert thesis["category"]["name"] == name
         assert thesis["out"] == default["out"] == f"artifacts/objects/{name}"
-        # everything but the sizes and hinge sides is the default category's
-        keep = {"geometry", "chirality"}
+        # everything but the sizes (door thickness included), the hinge sides and the
+        # distances (the cabinet's) is the default category's
+        keep = {"geometry", "chirality", "pose"}
+        assert thesis["category"]["geometry"].get("door_thickness") is None
+        table_a2 = [1.5, 3.5] if name == "refrigerator" else [1.0, 2.0]
+        assert thesis["category"]["pose"]["x"] == table_a2
         assert {k: v for k, v in thesis["category"].items() if k not in keep} == {
             k: v for k, v in default["category"].items() if k not in keep
         }
