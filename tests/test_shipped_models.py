@@ -109,8 +109,10 @@ def test_a_shipped_mdn_predicts_its_fixture_images_within_its_documented_error(
 ):
     """`artic predict` on a fresh install: the shipped model, the refinement on (the
     default), sixteen 16-bit PNGs of new objects; the median errors within the card's mean
-    errors, every hinge side right (kinematic_errors: evaluate mdn's metric), and intervals
-    printed for every estimate (a refined one's from the shipped refined_intervals.csv)."""
+    errors, at most one hinge side wrong (kinematic_errors: evaluate mdn's metric; the
+    cards' refined rates are 0.6-1.2% on withheld images, so one of sixteen comes with
+    about one fixture set in six, two with fewer than one in fifty), and intervals printed
+    for every estimate (a refined one's from the shipped refined_intervals.csv)."""
     import json
     import time
 
@@ -139,4 +141,4 @@ def test_a_shipped_mdn_predicts_its_fixture_images_within_its_documented_error(
     position, configuration = documented_errors(card.figures)
     assert np.median(errors["position_cm"]) <= position
     assert np.median(errors["configuration"]) <= configuration
-    assert not errors["hinge_side_wrong_pct"].any()
+    assert np.count_nonzero(errors["hinge_side_wrong_pct"]) <= 1

@@ -138,8 +138,9 @@ def domain_card_lines(domain: dict[str, Any], joint_type: str) -> list[str]:
     ]
     if d.door_thickness is not None:
         lo, hi = d.door_thickness
+        span = f"{lo * 100:.1f} cm" if lo == hi else f"{lo * 100:.1f} to {hi * 100:.1f} cm"
         lines.append(
-            f"- doors {lo * 100:.1f} to {hi * 100:.1f} cm thick; the refinement builds them "
+            f"- doors {span} thick; the refinement builds them "
             f"{refinement_door_thickness(d) * 100:.2f} cm thick (docs/kinematics.md)"
         )
     if len(d.chiralities) == 1:
