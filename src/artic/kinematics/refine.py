@@ -1038,16 +1038,16 @@ def refine(
     best = _choose_side(inside, network.chirality, side_weight(network.chirality, weights, means,
                                                                  columns))  # fmt: skip
     image, view = detail if detail is not None else (observed, camera)
-    handle = None
-    if category in SIDED:
-        handle = handle_side(inside, columns, category, parts, image, view)
-    panel = None
-    if handle is None:
-        panel = panel_side(inside, columns, category, parts, observed, camera)
-        handle = panel
-    if handle is not None and handle != best.chirality:
+    handle = (
+        handle_side(inside, columns, category, parts, image, view) if category in SIDED else None
+    )
+    panel = (
+        panel_side(inside, columns, category, parts, observed, camera) if handle is None else None
+    )
+    side = handle if handle is not None else panel
+    if side is not None and side != best.chirality:
         # a vote by the other side's candidate may name a side with no candidate inside
-        named = [c for c in inside if c.chirality == handle]
+        named = [c for c in inside if c.chirality == side]
         best = min(named, key=lambda c: c.residual) if named else best
     best = _refit_width(best, observed, camera, category, columns, parts, lower, upper)
     if not best.residual < residual_network:
@@ -1056,7 +1056,9 @@ def refine(
                           tuple(candidates))  # fmt: skip
     status = f"refined: component {best.component}, chirality {best.chirality:+d}"
     if handle is not None:
-        status += " (the control panel's side)" if panel is not None else " (the handle's side)"
+        status += " (the handle's side)"
+    elif panel is not None:
+        status += " (the control panel's side)"
     return Refinement(best.label, True, status, residual_network, best.residual, tuple(candidates))
 
 
@@ -1306,15 +1308,7 @@ def handle_side(
     the hinge), for the other when it has it by the hinge (at most 1 - `HANDLE_FREE`). A
     side is named when every vote is for it; None without a vote or with split votes."""
     votes = set()
-    floor = min((c.residual for c in candidates), default=math.inf)
-    for side in (1, -1):
-        same = [c for c in candidates if c.chirality == side]
-        if not same:
-            continue
-        best = min(same, key=lambda c: c.residual)
-        h = Hypothesis.from_label(best.label, columns)
-        if max(h.qs) >= HANDLE_Q_MAX or best.residual > HANDLE_RESIDUAL * floor:
-            continue
+    for side, h in _nearly_closed(candidates, columns, HANDLE_Q_MAX).items():
         at = handle_position(h, category, parts, depth, camera)
         if at is not None and at >= HANDLE_FREE:
             votes.add(side)
@@ -1374,16 +1368,11 @@ def panel_side(
     generator's, whose handle decides; a door without a window)."""
     if category not in PANEL_BESIDE:
         return None
-    floor = min((c.residual for c in candidates), default=math.inf)
+    sides = _nearly_closed(candidates, columns, PANEL_Q_MAX)
+    if len(sides) < 2:
+        return None
     recess: dict[int, float] = {}
-    for side in (1, -1):
-        same = [c for c in candidates if c.chirality == side]
-        if not same:
-            return None
-        best = min(same, key=lambda c: c.residual)
-        h = Hypothesis.from_label(best.label, columns)
-        if max(h.qs) >= PANEL_Q_MAX or best.residual > HANDLE_RESIDUAL * floor:
-            return None
+    for side, h in sides.items():
         value = panel_recess(h, category, parts, observed, camera)
         if value is None:
             return None
@@ -1392,6 +1381,26 @@ def panel_side(
         if recess[-side] > PANEL_RECESS and recess[side] < recess[-side] - PANEL_MARGIN:
             return side
     return None
+
+
+def _nearly_closed(
+    candidates: list[Candidate], columns: list[str], q_limit: float
+) -> dict[int, Hypothesis]:
+    """Per hinge side, its lowest-residual candidate's hypothesis when its doors are open
+    less than `q_limit` and its residual is within `HANDLE_RESIDUAL` times the lowest (a
+    door open far, seen by a candidate that has it closed, shows its edge standing proud):
+    the candidates `handle_side` and `panel_side` read."""
+    floor = min((c.residual for c in candidates), default=math.inf)
+    out: dict[int, Hypothesis] = {}
+    for side in (1, -1):
+        same = [c for c in candidates if c.chirality == side]
+        if not same:
+            continue
+        best = min(same, key=lambda c: c.residual)
+        h = Hypothesis.from_label(best.label, columns)
+        if max(h.qs) < q_limit and best.residual <= HANDLE_RESIDUAL * floor:
+            out[side] = h
+    return out
 
 
 def _side(h: Hypothesis, chirality: int) -> Hypothesis:
