@@ -69,6 +69,9 @@ closed door the two sides' renders differ by little more than the handle, which 
 residual over the whole object hardly weighs (docs/reproduction.md, issue 24). A
 microwave's control panel (`panel_side`) has the word when the handle names no side: a
 candidate on the wrong side puts its panel over the door's window, which reads recessed.
+When the panel names none either, the seam between the door's free edge and the panel
+does (`seam_side`): a line of pixels deeper than their row's neighbours (or missing),
+down the middle of the front, a panel's width from one end.
 
 A drawer (`JOINT_TYPES`) takes the same rounds with its front in place of the door's
 plane, one start per component (no hinge sides, no handle test), and a search on the
@@ -215,15 +218,33 @@ PANEL_BESIDE = ("microwave",)
 #: in `panel_side`, how far a candidate's control panel reads recessed: the median of
 #: (observed - rendered) depth over its pixels (the middle `PANEL_ROWS` of its height,
 #: at least `MIN_PANEL_PIXELS`); a side is named when the other side's panel reads
-#: recessed by more than `PANEL_RECESS` (m) and its own at least `PANEL_MARGIN` (m)
-#: less, both candidates' doors open less than `PANEL_Q_MAX`. Only a recess counts: a
-#: door a few degrees open stands proud before the panel's end of the front, so a
-#: candidate whose panel lies there reads it proud whichever side is right
+#: recessed by more than `PANEL_RECESS` (m) and its own less than that (flush or proud)
+#: and at least `PANEL_MARGIN` (m) less, both candidates' doors open less than
+#: `PANEL_Q_MAX`. Only a recess counts: a door a few degrees open stands proud before the
+#: panel's end of the front, so a candidate whose panel lies there reads it proud
+#: whichever side is right
 PANEL_RECESS = 0.003
 PANEL_MARGIN = 0.004
 PANEL_Q_MAX = math.radians(8.0)
 PANEL_ROWS = (0.2, 0.8)
 MIN_PANEL_PIXELS = 10
+#: in `seam_profile`: rows sampled over the middle `PANEL_ROWS` of the front's height, the
+#: front's width in bins; a pixel is deep when missing or more than `SEAM_DEEP` (m)
+#: behind its row's running median (over a twelfth of the front's width: a seam a few
+#: pixels wide does not move it, an oblique front's slope does); the median filter runs
+#: on the row with its missing pixels filled from their neighbours
+SEAM_ROWS = 32
+SEAM_BINS = 48
+SEAM_DEEP = 0.02
+#: in `seam_side`: a seam is a run of at most `SEAM_WIDTH` bins, each deep on at least
+#: `SEAM_SHARE` of the rows, inside the front (between the first and last bins deep on
+#: fewer than half: beyond them lie the background and a side face); at `SEAM_AT` of the
+#: front's width from its left end (as the image shows it: the +y end) it names hinge
+#: side +1 (the panel at +y), from its right end -1. A door open further than
+#: `HANDLE_Q_MAX` shows its own edges as seams
+SEAM_WIDTH = 3
+SEAM_SHARE = 0.6
+SEAM_AT = (0.1, 0.4)
 
 Array = NDArray[np.float64]
 
@@ -1044,7 +1065,12 @@ def refine(
     panel = (
         panel_side(inside, columns, category, parts, observed, camera) if handle is None else None
     )
-    side = handle if handle is not None else panel
+    seam = (
+        seam_side(inside, columns, category, parts, image, view)
+        if handle is None and panel is None
+        else None
+    )
+    side = next((v for v in (handle, panel, seam) if v is not None), None)
     if side is not None and side != best.chirality:
         # a vote by the other side's candidate may name a side with no candidate inside
         named = [c for c in inside if c.chirality == side]
@@ -1059,6 +1085,8 @@ def refine(
         status += " (the handle's side)"
     elif panel is not None:
         status += " (the control panel's side)"
+    elif seam is not None:
+        status += " (the seam beside the control panel)"
     return Refinement(best.label, True, status, residual_network, best.residual, tuple(candidates))
 
 
@@ -1362,9 +1390,10 @@ def panel_side(
     `PANEL_Q_MAX`) put the panel at opposite ends of one front. A door with a window recessed
     in its frame (or one the sensor sees through, to the mesh behind) makes the end that
     is the door read recessed where a candidate puts its panel there (`panel_recess`),
-    while the end that is the panel reads flush (or proud: its buttons). The side whose
-    panel reads at least `PANEL_MARGIN` less recessed is named when the other's reads
-    recessed by more than `PANEL_RECESS`; None otherwise (a flat door, the artic
+    while the end that is the panel reads flush (or proud: its buttons). A side is named
+    when its panel reads flush or proud (recessed by less than `PANEL_RECESS`) and at
+    least `PANEL_MARGIN` less recessed than the other side's, which reads recessed by
+    more than `PANEL_RECESS`; None otherwise (a flat door, the artic
     generator's, whose handle decides; a door without a window)."""
     if category not in PANEL_BESIDE:
         return None
@@ -1378,9 +1407,85 @@ def panel_side(
             return None
         recess[side] = value
     for side in (1, -1):
-        if recess[-side] > PANEL_RECESS and recess[side] < recess[-side] - PANEL_MARGIN:
+        flush = recess[side] < min(PANEL_RECESS, recess[-side] - PANEL_MARGIN)
+        if recess[-side] > PANEL_RECESS and flush:
             return side
     return None
+
+
+def seam_profile(
+    h: Hypothesis,
+    parts: PartsConfig,
+    depth: NDArray[np.floating],
+    camera: CameraIntrinsics,
+) -> Array | None:
+    """Across the front of `h`'s body (from its +y end, the image's left, to its -y end)
+    in `SEAM_BINS` bins: the share of `SEAM_ROWS` rows (the middle `PANEL_ROWS` of its
+    height) with a deep pixel in the bin (`SEAM_DEEP`). `depth` (H, W) metres in
+    `camera`; None when fewer than half the rows are in the image with their front at
+    least half seen."""
+    from scipy import ndimage
+
+    pose = h.pose_matrix()
+    front = -h.depth / 2 - parts.door_thickness
+    image = np.where(np.isfinite(depth), depth, 0)
+    hits, rows = np.zeros(SEAM_BINS), 0
+    for z in h.height * np.linspace(*PANEL_ROWS, SEAM_ROWS):
+        ends = np.array([[front, h.width / 2, z], [front, -h.width / 2, z]])
+        (ul, vl), (ur, vr) = camera.project(ends @ pose[:3, :3].T + pose[:3, 3])
+        a, b, v = round(ul), round(ur), round((vl + vr) / 2)
+        if not (0 <= v < camera.height and a >= 0 and b < camera.width and b - a >= SEAM_BINS):
+            continue
+        row = image[v, a : b + 1]
+        valid = np.nonzero(row > 0)[0]
+        if len(valid) < len(row) / 2:
+            continue
+        filled = np.interp(np.arange(len(row)), valid, row[valid])
+        level = ndimage.median_filter(filled, size=(len(row) // 12) | 1, mode="nearest")
+        deep = (row <= 0) | (row > level + SEAM_DEEP)
+        bins = np.minimum(np.arange(len(row)) * SEAM_BINS // len(row), SEAM_BINS - 1)
+        hits += np.bincount(bins[deep], minlength=SEAM_BINS) > 0
+        rows += 1
+    return hits / rows if rows >= SEAM_ROWS / 2 else None
+
+
+def seam_side(
+    candidates: list[Candidate],
+    columns: list[str],
+    category: str,
+    parts: PartsConfig,
+    depth: NDArray[np.floating],
+    camera: CameraIntrinsics,
+) -> int | None:
+    """The hinge side the seam between a nearly closed door and the control panel beside
+    its free edge names (`PANEL_BESIDE`; module docstring), read on the front of the
+    lowest-residual candidate when both sides have a candidate with its door open less
+    than `HANDLE_Q_MAX` (`_nearly_closed`): the side whose panel the seams found are at
+    (`SEAM_AT`, `seam_profile`); None without a seam, or with seams at both ends."""
+    if category not in PANEL_BESIDE or len(_nearly_closed(candidates, columns, HANDLE_Q_MAX)) < 2:
+        return None
+    best = min(candidates, key=lambda c: c.residual)
+    profile = seam_profile(Hypothesis.from_label(best.label, columns), parts, depth, camera)
+    if profile is None:
+        return None
+    inner = np.nonzero(profile < 0.5)[0]
+    if len(inner) < SEAM_BINS // 4:
+        return None
+    first, last = int(inner[0]), int(inner[-1])
+    votes = set()
+    k = first
+    while k < last:
+        end = k
+        while profile[k] >= SEAM_SHARE and end + 1 < last and profile[end + 1] >= SEAM_SHARE:
+            end += 1
+        if profile[k] >= SEAM_SHARE and end - k < SEAM_WIDTH:
+            at = ((k + end) / 2 + 0.5 - first) / (last + 1 - first)
+            if SEAM_AT[0] <= at <= SEAM_AT[1]:
+                votes.add(1)
+            elif SEAM_AT[0] <= 1.0 - at <= SEAM_AT[1]:
+                votes.add(-1)
+        k = end + 1
+    return votes.pop() if len(votes) == 1 else None
 
 
 def _nearly_closed(
