@@ -277,6 +277,28 @@ def test_refine_a_drawer_from_the_networks_mixture():
     assert abs(result.label[COLUMNS.index("j0_q")] - truth.qs[0]) < 0.005
 
 
+@pytest.mark.parametrize("category", ["drawer", "microwave"])
+def test_the_refinement_does_not_depend_on_its_ray_casting_threads(category):
+    """`refine(..., threads=2)` (what `artic predict` uses on this machine) gives the same
+    estimate, residuals and candidates, to the bit, as one thread: each ray is cast alone."""
+    truth = _drawer(0.3, 0.2) if category == "drawer" else _truth(category, -1, 0.4, yaw=0.2)
+    observed = apply_sensor_noise(_image(truth, category), SensorNoiseConfig(),
+                                  np.random.default_rng(4), CAMERA.fx)  # fmt: skip
+    guess = truth.with_pose(truth.x - 0.04, truth.y + 0.03, truth.z, truth.yaw - 0.05, (0.14,))
+    estimate = _label(guess, category)
+    results = [
+        refine(observed, CAMERA, category, COLUMNS, estimate, np.array([1.0]), estimate[None],
+               *_wide(estimate), threads=threads)
+        for threads in (1, 2)
+    ]  # fmt: skip
+    one, two = results
+    assert one.status == two.status and one.refined
+    np.testing.assert_array_equal(one.label, two.label)
+    assert (one.residual_network, one.residual_refined) == (
+        two.residual_network, two.residual_refined)  # fmt: skip
+    assert [c.residual for c in one.candidates] == [c.residual for c in two.candidates]
+
+
 @pytest.mark.parametrize("category", ["microwave", "cabinet"])
 def test_two_sided_test_picks_the_mirrored_side(category):
     """An object hinged on the camera's left (chirality -1), an estimate and a mixture

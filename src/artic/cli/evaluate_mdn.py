@@ -9,6 +9,7 @@ and plots: `errors.png`, `calibration.png`, `examples.png` (true axes green, pre
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -59,8 +60,10 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
     from artic.kinematics.evaluate import evaluate
     from artic.kinematics.predict import Predictor
 
-    torch.set_num_threads(cfg.runtime.threads or available_cpus())
+    threads = cfg.runtime.threads or available_cpus()
+    torch.set_num_threads(threads)
     predictor = Predictor.load(inputs["model"] / MODEL, cfg.category.name)
+    predictor = dataclasses.replace(predictor, threads=threads)  # the refinement's rays
     ds = DepthDataset.open(inputs["depth"])
     if ds.label_columns != list(predictor.codec.columns):
         raise InputError(f"depth: {inputs['depth']} has other label columns than the model")

@@ -30,6 +30,7 @@ import torch
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict
 
+from artic.artifacts.workers import available_cpus
 from artic.errors import InputError
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics import Estimator
@@ -179,6 +180,9 @@ class Predictor:
     #: the refined estimate's interval scales (kinematics/intervals.py), read from
     #: `refined_intervals.csv` beside the model file; None without one
     refined_scales: Scales | None = None
+    #: threads the refinement casts its candidates' rays with (0: every CPU this process
+    #: may use); each ray is cast alone, so the estimates do not depend on it
+    threads: int = 0
 
     @classmethod
     def load(cls, path: Path, category: str | None = None) -> Predictor:
@@ -310,6 +314,7 @@ class Predictor:
             list(self.codec.columns), label, mix.log_pi[0].exp().double().numpy(),
             self.codec.decode(mix.mu[0].numpy()), self.codec.decode(lower[0].numpy()),
             self.codec.decode(upper[0].numpy()), parts=self.parts, detail=detail,
+            threads=self.threads or available_cpus(),
         )  # fmt: skip
 
     @property

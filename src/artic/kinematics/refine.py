@@ -408,14 +408,14 @@ class PosedRenderer:
     the same pose."""
 
     def __init__(self, hypothesis: Hypothesis, category: str, parts: PartsConfig,
-                 camera: CameraIntrinsics) -> None:  # fmt: skip
+                 camera: CameraIntrinsics, threads: int = 1) -> None:  # fmt: skip
         from artic.objects.categories import build
         from artic.render.raycast import RaycastBackend
 
         self.geometry = (hypothesis.depth, hypothesis.width, hypothesis.height)
         self.chirality = hypothesis.chirality
         self.object: ArticulatedObject = build(hypothesis.spec(category, parts))
-        self.backend = RaycastBackend(camera)
+        self.backend = RaycastBackend(camera, threads=threads)
         #: the doors' (or the drawer's) joints, in joint order
         self.joints = self.object.movable_joints
         self.doors = tuple(_Door.of(self.object, joint) for joint in self.joints)
@@ -1009,15 +1009,17 @@ def refine(
     upper: Array,
     parts: PartsConfig | None = None,
     detail: tuple[NDArray[np.floating], CameraIntrinsics] | None = None,
+    threads: int = 1,
 ) -> Refinement:
     """Refine the network's `estimate` (L,) of the depth image `observed` (H, W) metres in
     `camera` (the model's camera; 0 = no return), given the mixture's `weights` (m,),
     component `means` (m, L) and central interval [`lower`, `upper`] (L,) in label units
     (`INTERVAL_LEVEL`), for an object of `category` built with `parts` (default: the
     categories' defaults). `detail`: the same view in the camera it was taken with (depth,
-    camera), for the handle test (`handle_side`); default `observed` in `camera`. Never
-    raises on an image: a refinement that cannot run returns the network's estimate and
-    says why (module docstring)."""
+    camera), for the handle and seam tests (`handle_side`, `seam_side`); default
+    `observed` in `camera`. `threads`: the candidates' ray casting's (the result does not
+    depend on it). Never raises on an image: a refinement that cannot run returns the
+    network's estimate and says why (module docstring)."""
     parts = parts or PartsConfig()
     estimate = np.asarray(estimate, dtype=np.float64)
     none: tuple[Candidate, ...] = ()
@@ -1044,8 +1046,9 @@ def refine(
     network = Hypothesis.from_label(estimate, columns, JOINT_TYPES[category])
     try:
         residual_network, candidates = _candidates(
-            network, observed, camera, category, columns, weights, means, lower, upper, parts
-        )
+            network, observed, camera, category, columns, weights, means, lower, upper, parts,
+            threads,
+        )  # fmt: skip
     except (ValueError, np.linalg.LinAlgError) as err:  # an object the builder refuses
         return Refinement(
             estimate, False, f"fallback: the refinement failed ({str(err).splitlines()[0]})",
@@ -1101,12 +1104,16 @@ def _candidates(
     lower: Array,
     upper: Array,
     parts: PartsConfig,
+    threads: int = 1,
 ) -> tuple[float, list[Candidate]]:
-    """The network's residual and every refined candidate (module docstring)."""
+    """The network's residual and every refined candidate (module docstring), their rays
+    cast on `threads` threads."""
     rays = camera.ray_directions()
     # a door from both hinge sides; a drawer and the two-door cabinet have one
     sides = (1, -1) if category in SIDED else (network.chirality,)
-    renderers = {c: PosedRenderer(_side(network, c), category, parts, camera) for c in sides}
+    renderers = {
+        c: PosedRenderer(_side(network, c), category, parts, camera, threads) for c in sides
+    }
     try:
         image, _ = renderers[network.chirality].render(network)
         residual_network = depth_residual(image.depth, observed)
