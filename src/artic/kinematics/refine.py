@@ -1475,23 +1475,23 @@ def seam_side(
     profile = seam_profile(Hypothesis.from_label(best.label, columns), parts, depth, camera)
     if profile is None:
         return None
+    from scipy import ndimage
+
     inner = np.nonzero(profile < 0.5)[0]
     if len(inner) < SEAM_BINS // 4:
         return None
-    first, last = int(inner[0]), int(inner[-1])
+    first, last = int(inner[0]), int(inner[-1])  # the front's ends: runs lie between them
+    runs, _ = ndimage.label(profile[first : last + 1] >= SEAM_SHARE)
     votes = set()
-    k = first
-    while k < last:
-        end = k
-        while profile[k] >= SEAM_SHARE and end + 1 < last and profile[end + 1] >= SEAM_SHARE:
-            end += 1
-        if profile[k] >= SEAM_SHARE and end - k < SEAM_WIDTH:
-            at = ((k + end) / 2 + 0.5 - first) / (last + 1 - first)
-            if SEAM_AT[0] <= at <= SEAM_AT[1]:
-                votes.add(1)
-            elif SEAM_AT[0] <= 1.0 - at <= SEAM_AT[1]:
-                votes.add(-1)
-        k = end + 1
+    for found in ndimage.find_objects(runs):
+        lo, hi = found[0].start, found[0].stop  # bins first + lo ... first + hi - 1
+        if hi - lo > SEAM_WIDTH:
+            continue
+        at = ((lo + hi - 1) / 2 + 0.5) / (last + 1 - first)
+        if SEAM_AT[0] <= at <= SEAM_AT[1]:
+            votes.add(1)
+        elif SEAM_AT[0] <= 1.0 - at <= SEAM_AT[1]:
+            votes.add(-1)
     return votes.pop() if len(votes) == 1 else None
 
 
