@@ -245,6 +245,21 @@ SEAM_DEEP = 0.02
 SEAM_WIDTH = 3
 SEAM_SHARE = 0.6
 SEAM_AT = (0.1, 0.4)
+#: in `front_profile`: the front's depth in `SEAM_BINS` bins across it, the median of the
+#: image's points within `FRONT_BAND` (m) of the front's plane over the middle `PANEL_ROWS`
+#: of its height, a bin counted with at least `MIN_BIN_POINTS` points, a profile with at
+#: least `FRONT_SEEN` of its bins
+FRONT_BAND = 0.1
+MIN_BIN_POINTS = 5
+FRONT_SEEN = 0.75
+#: in `front_fit`: the door's share of the front tried (the rest is the control panel)
+FRONT_DOOR_SHARES = tuple(float(v) for v in np.linspace(0.6, 0.85, 11))
+#: in `front_fit`: the robust fit's residuals capped at `FRONT_CAP` (m), its deviations
+#: floored at `FRONT_FLOOR` (m)
+FRONT_CAP = 0.02
+FRONT_FLOOR = 0.002
+#: in `front_side`: a side is named when the other side's fit is `FRONT_RATIO` times worse
+FRONT_RATIO = 1.5
 
 Array = NDArray[np.float64]
 
@@ -1065,15 +1080,20 @@ def refine(
     handle = (
         handle_side(inside, columns, category, parts, image, view) if category in SIDED else None
     )
+    front = (
+        front_side(inside, columns, category, parts, image, view) if handle is None else None
+    )
     panel = (
-        panel_side(inside, columns, category, parts, observed, camera) if handle is None else None
+        panel_side(inside, columns, category, parts, observed, camera)
+        if handle is None and front is None
+        else None
     )
     seam = (
         seam_side(inside, columns, category, parts, image, view)
-        if handle is None and panel is None
+        if handle is None and front is None and panel is None
         else None
     )
-    side = next((v for v in (handle, panel, seam) if v is not None), None)
+    side = next((v for v in (handle, front, panel, seam) if v is not None), None)
     if side is not None and side != best.chirality:
         # a vote by the other side's candidate may name a side with no candidate inside
         named = [c for c in inside if c.chirality == side]
@@ -1086,6 +1106,8 @@ def refine(
     status = f"refined: component {best.component}, chirality {best.chirality:+d}"
     if handle is not None:
         status += " (the handle's side)"
+    elif front is not None:
+        status += " (the front's shape)"
     elif panel is not None:
         status += " (the control panel's side)"
     elif seam is not None:
@@ -1493,6 +1515,103 @@ def seam_side(
         elif SEAM_AT[0] <= 1.0 - at <= SEAM_AT[1]:
             votes.add(-1)
     return votes.pop() if len(votes) == 1 else None
+
+
+def front_profile(
+    h: Hypothesis,
+    parts: PartsConfig,
+    depth: NDArray[np.floating],
+    camera: CameraIntrinsics,
+) -> Array | None:
+    """The depth of the front of `h`'s body across it, in `SEAM_BINS` bins from its -y end
+    to its +y end: the median object-frame x (m; smaller is nearer the camera) of the
+    points of `depth` (H, W metres in `camera`) within `FRONT_BAND` of the front's plane,
+    over the middle `PANEL_ROWS` of the body's height (NaN in a bin with fewer than
+    `MIN_BIN_POINTS`). None when the front spans fewer than `SEAM_BINS` pixels (a bin
+    would be less than a pixel) or fewer than `FRONT_SEEN` of the bins are seen."""
+    pose = h.pose_matrix()
+    front = -h.depth / 2 - parts.door_thickness
+    ends = np.array([[front, h.width / 2, h.height / 2], [front, -h.width / 2, h.height / 2]])
+    (ul, _), (ur, _) = camera.project(ends @ pose[:3, :3].T + pose[:3, 3])
+    if abs(ur - ul) < SEAM_BINS:
+        return None
+    image = np.where(np.isfinite(depth), depth, 0)
+    rows, cols = np.nonzero(image > 0)
+    points = camera.ray_directions()[rows, cols].astype(np.float64) * image[rows, cols, None]
+    local = (points - pose[:3, 3]) @ pose[:3, :3]
+    up = local[:, 2] / h.height
+    on = (
+        (up > PANEL_ROWS[0])
+        & (up < PANEL_ROWS[1])
+        & (np.abs(local[:, 1]) < h.width / 2)
+        & (np.abs(local[:, 0] - front) < FRONT_BAND)
+    )
+    across = ((local[on, 1] + h.width / 2) / h.width * SEAM_BINS).astype(int)
+    across = np.clip(across, 0, SEAM_BINS - 1)
+    x = local[on, 0]
+    profile = np.full(SEAM_BINS, np.nan)
+    order = np.argsort(across, kind="stable")
+    starts = np.searchsorted(across[order], np.arange(SEAM_BINS + 1))
+    for k in range(SEAM_BINS):
+        members = x[order[starts[k] : starts[k + 1]]]
+        if len(members) >= MIN_BIN_POINTS:
+            profile[k] = float(np.median(members))
+    return profile if np.isfinite(profile).mean() >= FRONT_SEEN else None
+
+
+def front_fit(profile: Array, side: int) -> float:
+    """How well the front's `profile` (`front_profile`) reads as a door hinged on `side`
+    beside a flat control panel: the least mean residual (m, each capped at `FRONT_CAP`)
+    over the door's shares of the front (`FRONT_DOOR_SHARES`) of a robust (Huber) fit of
+    the body's front as a line across the bins, plus, on the door's bins, an offset and a
+    line that starts at the hinge (a door turned about its hinge stands out in proportion
+    to the distance from it). Side +1 has its hinge at the -y end (bin 0)."""
+    across = (np.arange(SEAM_BINS) + 0.5) / SEAM_BINS
+    from_hinge = across if side > 0 else 1.0 - across
+    seen = np.isfinite(profile)
+    best = math.inf
+    for share in FRONT_DOOR_SHARES:
+        door = (from_hinge < share).astype(np.float64)
+        design = np.column_stack([np.ones(SEAM_BINS), across, door, door * from_hinge])[seen]
+        x = profile[seen]
+        weight = np.ones(len(x))
+        for _ in range(5):
+            coef = np.linalg.lstsq(design * weight[:, None], x * weight, rcond=None)[0]
+            residual = np.abs(x - design @ coef)
+            scale = max(1.4826 * float(np.median(residual)), FRONT_FLOOR)
+            weight = np.sqrt(np.minimum(1.0, 2.0 * scale / np.maximum(residual, 1e-12)))
+        best = min(best, float(np.mean(np.minimum(residual, FRONT_CAP))))
+    return best
+
+
+def front_side(
+    candidates: list[Candidate],
+    columns: list[str],
+    category: str,
+    parts: PartsConfig,
+    depth: NDArray[np.floating],
+    camera: CameraIntrinsics,
+) -> int | None:
+    """The hinge side the front's shape names (`PANEL_BESIDE`; module docstring), read on
+    the front of the lowest-residual candidate when its door is open less than
+    `HANDLE_Q_MAX` (the front is then one surface, whichever the side): the side whose
+    hinged door beside a flat panel fits the front's profile `FRONT_RATIO` times better
+    than the other's (`front_fit`); None otherwise (a door closed flush fits both sides
+    alike)."""
+    if category not in PANEL_BESIDE or not candidates:
+        return None
+    best = min(candidates, key=lambda c: c.residual)
+    h = Hypothesis.from_label(best.label, columns)
+    if max(h.qs) >= HANDLE_Q_MAX:
+        return None
+    profile = front_profile(h, parts, depth, camera)
+    if profile is None:
+        return None
+    fits = {side: front_fit(profile, side) for side in (1, -1)}
+    for side in (1, -1):
+        if FRONT_RATIO * fits[side] < fits[-side]:
+            return side
+    return None
 
 
 def _nearly_closed(
