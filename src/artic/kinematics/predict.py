@@ -533,7 +533,7 @@ def predict_image(
             raise InputError(f"{mask}: no valid depth pixel of {image} inside the mask")
     detail = None
     if reprojected:
-        detail = (depth, cam)  # the refinement's handle test reads the image as taken
+        detail = (depth, cam)  # the handle, front and seam tests read it as taken
         depth = reproject(depth, cam, predictor.camera)
         if not (depth > 0).any():
             raise InputError(f"{image}: no pixel lands inside the training camera's view")

@@ -66,9 +66,14 @@ side, one with it by the hinge for the other side; a side every vote is for is c
 with its lowest-residual candidate. A door with no handle, or one too far away for its
 handle to stand out of the sensor's noise, leaves the choice to the residuals. On a nearly
 closed door the two sides' renders differ by little more than the handle, which the
-residual over the whole object hardly weighs (docs/reproduction.md, issue 24). A
-microwave's control panel (`panel_side`) has the word when the handle names no side: a
-candidate on the wrong side puts its panel over the door's window, which reads recessed.
+residual over the whole object hardly weighs (docs/reproduction.md, issue 24). On a
+microwave the front's shape has the word next (`front_side`): a door turned about its
+hinge stands out of the front in proportion to the distance from the hinge, beside a
+control panel that stays in the body's plane, so the front's profile across its width
+(`front_profile`, in the image's own camera) has a step at the door's free edge; each
+side's model of it (`front_fit`) is fitted, and the side that fits far better is named.
+Then the control panel (`panel_side`): a candidate on the wrong side puts its panel over
+the door's window, which reads recessed.
 When the panel names none either, the seam between the door's free edge and the panel
 does (`seam_side`): a line of pixels deeper than their row's neighbours (or missing),
 down the middle of the front, a panel's width from one end.
@@ -1031,9 +1036,9 @@ def refine(
     component `means` (m, L) and central interval [`lower`, `upper`] (L,) in label units
     (`INTERVAL_LEVEL`), for an object of `category` built with `parts` (default: the
     categories' defaults). `detail`: the same view in the camera it was taken with (depth,
-    camera), for the handle and seam tests (`handle_side`, `seam_side`); default
-    `observed` in `camera`. `threads`: the candidates' ray casting's (the result does not
-    depend on it). Never raises on an image: a refinement that cannot run returns the
+    camera), for the handle, front and seam tests (`handle_side`, `front_side`,
+    `seam_side`); default `observed` in `camera`. `threads`: the candidates' ray casting's
+    (the result does not depend on it). Never raises on an image: a refinement that cannot run returns the
     network's estimate and says why (module docstring)."""
     parts = parts or PartsConfig()
     estimate = np.asarray(estimate, dtype=np.float64)
@@ -1080,9 +1085,7 @@ def refine(
     handle = (
         handle_side(inside, columns, category, parts, image, view) if category in SIDED else None
     )
-    front = (
-        front_side(inside, columns, category, parts, image, view) if handle is None else None
-    )
+    front = front_side(inside, columns, category, parts, image, view) if handle is None else None
     panel = (
         panel_side(inside, columns, category, parts, observed, camera)
         if handle is None and front is None
