@@ -1038,8 +1038,8 @@ def refine(
     categories' defaults). `detail`: the same view in the camera it was taken with (depth,
     camera), for the handle, front and seam tests (`handle_side`, `front_side`,
     `seam_side`); default `observed` in `camera`. `threads`: the candidates' ray casting's
-    (the result does not depend on it). Never raises on an image: a refinement that cannot run returns the
-    network's estimate and says why (module docstring)."""
+    (the result does not depend on it). Never raises on an image: a refinement that cannot
+    run returns the network's estimate and says why (module docstring)."""
     parts = parts or PartsConfig()
     estimate = np.asarray(estimate, dtype=np.float64)
     none: tuple[Candidate, ...] = ()
