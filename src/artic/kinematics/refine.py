@@ -1082,21 +1082,22 @@ def refine(
     best = _choose_side(inside, network.chirality, side_weight(network.chirality, weights, means,
                                                                  columns))  # fmt: skip
     image, view = detail if detail is not None else (observed, camera)
-    handle = (
-        handle_side(inside, columns, category, parts, image, view) if category in SIDED else None
-    )
-    front = front_side(inside, columns, category, parts, image, view) if handle is None else None
-    panel = (
-        panel_side(inside, columns, category, parts, observed, camera)
-        if handle is None and front is None
-        else None
-    )
-    seam = (
-        seam_side(inside, columns, category, parts, image, view)
-        if handle is None and front is None and panel is None
-        else None
-    )
-    side = next((v for v in (handle, front, panel, seam) if v is not None), None)
+    # the hinge-side tests of a door's category in turn (module docstring), the first to
+    # name a side decides; the control panel's three say None but for `PANEL_BESIDE`
+    tests: tuple[tuple[str, Callable[[], int | None]], ...] = (
+        ("the handle's side", lambda: handle_side(inside, columns, category, parts, image, view)),
+        ("the front's shape", lambda: front_side(inside, columns, category, parts, image, view)),
+        ("the control panel's side",
+         lambda: panel_side(inside, columns, category, parts, observed, camera)),
+        ("the seam beside the control panel",
+         lambda: seam_side(inside, columns, category, parts, image, view)),
+    )  # fmt: skip
+    side, named_by = None, ""
+    for name, test in tests if category in SIDED else ():
+        side = test()
+        if side is not None:
+            named_by = f" ({name})"
+            break
     if side is not None and side != best.chirality:
         # a vote by the other side's candidate may name a side with no candidate inside
         named = [c for c in inside if c.chirality == side]
@@ -1106,15 +1107,7 @@ def refine(
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
         return Refinement(estimate, False, status, residual_network, residual_network,
                           tuple(candidates))  # fmt: skip
-    status = f"refined: component {best.component}, chirality {best.chirality:+d}"
-    if handle is not None:
-        status += " (the handle's side)"
-    elif front is not None:
-        status += " (the front's shape)"
-    elif panel is not None:
-        status += " (the control panel's side)"
-    elif seam is not None:
-        status += " (the seam beside the control panel)"
+    status = f"refined: component {best.component}, chirality {best.chirality:+d}{named_by}"
     return Refinement(best.label, True, status, residual_network, best.residual, tuple(candidates))
 
 
@@ -1538,10 +1531,10 @@ def front_profile(
     (ul, _), (ur, _) = camera.project(ends @ pose[:3, :3].T + pose[:3, 3])
     if abs(ur - ul) < SEAM_BINS:
         return None
+    from scipy import ndimage
+
     image = np.where(np.isfinite(depth), depth, 0)
-    rows, cols = np.nonzero(image > 0)
-    points = camera.ray_directions()[rows, cols].astype(np.float64) * image[rows, cols, None]
-    local = (points - pose[:3, 3]) @ pose[:3, :3]
+    local = (camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3]
     up = local[:, 2] / h.height
     on = (
         (up > PANEL_ROWS[0])
@@ -1551,15 +1544,11 @@ def front_profile(
     )
     across = ((local[on, 1] + h.width / 2) / h.width * SEAM_BINS).astype(int)
     across = np.clip(across, 0, SEAM_BINS - 1)
-    x = local[on, 0]
-    profile = np.full(SEAM_BINS, np.nan)
-    order = np.argsort(across, kind="stable")
-    starts = np.searchsorted(across[order], np.arange(SEAM_BINS + 1))
-    for k in range(SEAM_BINS):
-        members = x[order[starts[k] : starts[k + 1]]]
-        if len(members) >= MIN_BIN_POINTS:
-            profile[k] = float(np.median(members))
-    return profile if np.isfinite(profile).mean() >= FRONT_SEEN else None
+    bins = np.arange(SEAM_BINS)
+    median = np.asarray(ndimage.median(local[on, 0], across, bins), dtype=np.float64)
+    counted = np.bincount(across, minlength=SEAM_BINS) >= MIN_BIN_POINTS
+    profile = np.where(counted, median, np.nan)
+    return profile if counted.mean() >= FRONT_SEEN else None
 
 
 def front_fit(profile: Array, side: int) -> float:
@@ -1623,7 +1612,7 @@ def _nearly_closed(
     """Per hinge side, its lowest-residual candidate's hypothesis when its doors are open
     less than `q_limit` and its residual is within `HANDLE_RESIDUAL` times the lowest (a
     door open far, seen by a candidate that has it closed, shows its edge standing proud):
-    the candidates `handle_side` and `panel_side` read."""
+    the candidates `handle_side`, `panel_side` and `seam_side` read."""
     floor = min((c.residual for c in candidates), default=math.inf)
     out: dict[int, Hypothesis] = {}
     for side in (1, -1):
