@@ -868,6 +868,43 @@ def test_the_seam_beside_a_closed_doors_control_panel_names_its_side(chirality):
                          _seamed(moved, "microwave", 0.006), DETAIL) is None  # fmt: skip
 
 
+def test_the_first_side_test_to_name_a_side_decides_and_the_status_says_which(monkeypatch):
+    """The hinge-side tests are asked in turn (handle, front, panel, seam): the first to
+    name a side decides (the later ones are not asked) and the status names it; with none,
+    the residuals decide and the status names no test."""
+    import artic.kinematics.refine as module
+
+    truth = _truth("microwave", -1, 0.4, yaw=0.2)
+    observed = apply_sensor_noise(_image(truth, "microwave"), SensorNoiseConfig(),
+                                  np.random.default_rng(4), CAMERA.fx)  # fmt: skip
+    guess = truth.with_pose(truth.x - 0.04, truth.y + 0.03, truth.z, truth.yaw - 0.05, (0.14,))
+    estimate = _label(guess, "microwave")
+    asked: list[str] = []
+
+    def answer(name: str, side: int | None):
+        def test(*args):
+            asked.append(name)
+            return side
+
+        return test
+
+    def run(front: int | None) -> str:
+        asked.clear()
+        monkeypatch.setattr(module, "handle_side", answer("handle", None))
+        monkeypatch.setattr(module, "front_side", answer("front", front))
+        monkeypatch.setattr(module, "panel_side", answer("panel", None))
+        monkeypatch.setattr(module, "seam_side", answer("seam", None))
+        result = refine(observed, CAMERA, "microwave", COLUMNS, estimate, np.array([1.0]),
+                        estimate[None], *_wide(estimate))  # fmt: skip
+        assert result.refined
+        return result.status
+
+    assert run(front=-1).endswith("chirality -1 (the front's shape)")
+    assert asked == ["handle", "front"]
+    assert run(front=None).endswith("chirality -1")
+    assert asked == ["handle", "front", "panel", "seam"]
+
+
 def _hinged_front(side: int, q: float, share: float = 0.75) -> np.ndarray:
     """A front's profile (`front_profile`'s bins, m): a flat panel tilted by a body turned a
     little, the door (`share` of the front) turned by `q` about its hinge on `side`."""
