@@ -78,14 +78,22 @@ When the panel names none either, the seam between the door's free edge and the 
 does (`seam_side`): a line of pixels deeper than their row's neighbours (or missing),
 down the middle of the front, a panel's width from one end.
 
+A toaster's door is a flap hinged at its bottom edge (`_Door.flap`): its plane is fitted
+across its horizontal axis, in the object's (x, z) plane (`_door_q`), and its normal's
+part along z enters the position's least squares at the base height read off the bottom
+edge. No door plane then meets a side, so the chosen candidate's width comes from the
+front's far edge against the background (`front_width`) instead of `_fit_width`'s hinge,
+and an opened flap's edge beside the control panel gives the panel's share of the width
+(`flap_panel_share`), which places the door across the front.
+
 A drawer (`JOINT_TYPES`) takes the same rounds with its front in place of the door's
 plane, one start per component (no hinge sides, no handle test), and a search on the
 depth residual along its opening, across its front and up (`search_opening`, `_fit_drawer`).
 
-Supported: the categories with doors on vertical hinges (one door; the two-door cabinet's
-side by side, each hinged at its outer edge; the refrigerator's one above the other, both on
-its hinge side) and the drawer (`SUPPORTED`); the toaster (a door hinged at its bottom)
-returns the network's estimate with a status saying so.
+Supported: the six Chapter 3 categories (`SUPPORTED`): doors on vertical hinges (one
+door; the two-door cabinet's side by side, each hinged at its outer edge; the
+refrigerator's one above the other, both on its hinge side), the toaster's flap and the
+drawer. Any other category returns the network's estimate with a status saying so.
 """
 
 from __future__ import annotations
@@ -102,17 +110,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from artic.geometry.camera import CameraIntrinsics
-from artic.geometry.transforms import make_transform, rot_z
+from artic.geometry.transforms import axis_angle, make_transform, rot_z
 from artic.objects.model import ArticulatedObject, Joint
 from artic.objects.spec import ObjectSpec, PartsConfig, Pose
 from artic.render.backend import RenderedImage
 
 #: the categories refined and their joints: doors on vertical hinges (one, or the two-door
-#: cabinet's side by side, or the refrigerator's one above the other) or one drawer
-#: (`_fit`, "A drawer")
+#: cabinet's side by side, or the refrigerator's one above the other), the toaster's door
+#: hinged at its bottom edge, or one drawer (`_fit`, "A drawer")
 JOINT_TYPES = {
     "cabinet": "revolute", "microwave": "revolute", "cabinet2": "revolute",
-    "refrigerator": "revolute", "drawer": "prismatic",
+    "refrigerator": "revolute", "toaster": "revolute", "drawer": "prismatic",
 }  # fmt: skip
 SUPPORTED = tuple(JOINT_TYPES)
 #: the categories whose chirality is a hinge side to decide (both sides are tried, the
@@ -163,6 +171,18 @@ Q_PRIOR_WEIGHT = 0.01
 SEARCH_STEP = 0.01
 #: how far the search moves a drawer's base along its front and up or down (m)
 SEARCH_SPAN = 0.05
+#: how far beyond the hypothesis' sides a flap's front is looked for, and how close to
+#: its plane (m, `front_width`)
+WIDTH_SPAN = 0.12
+WIDTH_BAND = 0.03
+#: the quantile across the front taken as its far edge's last pixel, and the fewest points
+WIDTH_QUANTILE = 0.99
+MIN_WIDTH_POINTS = 100
+#: a flap's control panel share is read off the door opened at least this far, over this
+#: part of the door's height, and kept within these shares (`flap_panel_share`)
+PANEL_SHARE_Q = math.radians(15.0)
+PANEL_SHARE_ROWS = (0.3, 1.0)
+PANEL_SHARES = (0.1, 0.4)
 #: the base height is read off the bottom silhouette edge when it has this many pixels
 MIN_EDGE_PIXELS = 5
 #: an edge pixel's rendered hypothesis must end within this many rows below it
@@ -480,20 +500,33 @@ class _Door:
     """What the fits need of one movable joint: its frame's point in the body frame (3,),
     the part mask's value for its link (`RenderedImage.part_mask`), the sign of its axis
     along the body's z (a door's normal is the body front's turned by sign x q about z),
-    and whether its link stands on the base (its faces end at the bottom edge)."""
+    whether its link stands on the base (its faces end at the bottom edge), and its axis
+    in the body frame (3,): vertical for a door on a side hinge, along y for a flap hinged
+    at its bottom edge (the toaster's), along x for a drawer."""
 
     origin: Array
     part: int
     sign: int
     at_base: bool
+    axis: Array
 
     @classmethod
     def of(cls, obj: ArticulatedObject, joint: Joint) -> _Door:
         names = [link.name for link in obj.links]
-        axis_z = float((joint.origin[:3, :3] @ joint.axis)[2])
+        axis = joint.origin[:3, :3] @ joint.axis
         origin = joint.origin[:3, 3].copy()
-        return cls(origin, names.index(joint.child) + 1, 1 if axis_z >= 0 else -1,
-                   abs(float(origin[2])) < FACE_EPS)  # fmt: skip
+        return cls(origin, names.index(joint.child) + 1, 1 if float(axis[2]) >= 0 else -1,
+                   abs(float(origin[2])) < FACE_EPS, axis)  # fmt: skip
+
+    @property
+    def flap(self) -> bool:
+        """A door hinged at a horizontal edge (its axis across the front)."""
+        return abs(float(self.axis[1])) > 0.5
+
+    def turn(self, q: float) -> Array:
+        """(3, 3) the door's rotation in the body frame at q (a side-hinged door's about
+        z, a flap's about its horizontal axis)."""
+        return axis_angle(self.axis, q) if self.flap else rot_z(self.sign * q)
 
 
 @dataclass(frozen=True)
@@ -557,10 +590,10 @@ def _faces(
             on = (part == door.part) & (
                 (np.abs(local[:, 0] + thickness) < FACE_EPS) | (np.abs(local[:, 0]) < FACE_EPS)
             )
-            if door.at_base:
+            if door.at_base and not door.flap:
                 ends_at_base = ends_at_base | on
         on &= near(local, local_seen, 0)
-        if door.at_base and h.joint_type == "revolute":
+        if door.at_base and h.joint_type == "revolute" and not door.flap:
             broad_front = np.abs(local[:, 0] + thickness) < FACE_EPS
             door_level += [on & broad_front, on & ~broad_front]
             door_frames += [door_pose, door_pose]
@@ -804,27 +837,53 @@ def _fit(
     rows.append(np.tile(a, (int(inl_side.sum()), 1)))
     rhs.append(pts[inl_side] @ a - offset[inl_side])
     qs = list(h.qs)
-    no_side = (np.zeros((0, 3)), np.zeros(0))
+    base = _base_height(h, faces)
     for j, (door, face, keep) in enumerate(zip(doors, faces.doors, inl_doors, strict=True)):
-        # q from the door's front normal against the body's front (normal turned by s q)
+        # q from the door's front normal against the body's front (`_door_q`)
         if keep.sum() >= MIN_DOOR_POINTS:
-            n_door, keep, _ = _robust_normal(face, keep, no_side, np.zeros(0, dtype=bool))
-            options = [door.sign * _wrap(_angle(s * n_door) - (yaw + math.pi)) for s in (1.0, -1.0)]
-            qs[j] = float(np.clip(min(options, key=lambda v: abs(v - h.qs[j])), 0.0, Q_MAX))
+            qs[j], keep = _door_q(door, face, keep, yaw, h.qs[j])
         # base position: each inlier on its face's plane
-        a = (rot @ rot_z(door.sign * qs[j]))[:, 0]  # the door's x: a . (p - t - R o_joint)
+        a = (rot @ door.turn(qs[j]))[:, 0]  # the door's x: a . (p - t - R o_joint)
         pts, offset = face
         rows.append(np.tile(a, (int(keep.sum()), 1)))
-        rhs.append(pts[keep] @ a - a @ (rot @ door.origin) - offset[keep])
+        # a flap's normal tilts out of the horizontal: its part along z is the base height's
+        rhs.append(pts[keep] @ a - a @ (rot @ door.origin) - offset[keep] - a[2] * base)
     # plus a pull towards the hypothesis
     prior = math.sqrt(PRIOR_WEIGHT)
     rows.append(prior * np.eye(3)[:2])
     rhs.append(prior * np.array([h.x, h.y]))
-    # every face normal is horizontal: the position across them is (x, y) alone
+    # the base height held: the position across the faces is (x, y) alone
     t = np.linalg.lstsq(np.concatenate(rows)[:, :2], np.concatenate(rhs), rcond=None)[0]
-    base = _base_height(h, faces)
     h = dataclasses.replace(h, lift=_lift(h, faces, base))
     return h.with_pose(float(t[0]), float(t[1]), base, yaw, tuple(qs))
+
+
+def _door_q(
+    door: _Door, face: tuple[Array, Array], keep: NDArray[np.bool_], yaw: float, q: float
+) -> tuple[float, NDArray[np.bool_]]:
+    """A door's q from its broad faces' points (`face`, RANSAC's `keep`) and the body's
+    `yaw`: of the two readings of the fitted normal's sign, the one nearest the
+    hypothesis' `q`, clipped to [0, `Q_MAX`]; and the points the robust fit kept. A
+    side-hinged door's normal is horizontal, the body front's turned by sign x q about z
+    (`_robust_normal` on the camera's horizontal coordinates); a flap's turns about its
+    horizontal axis, so its normal is fitted in the object's (x, z) plane, across that
+    axis."""
+    no_side, none = (np.zeros((0, 3)), np.zeros(0)), np.zeros(0, dtype=bool)
+    if not door.flap:
+        n_door, keep, _ = _robust_normal(face, keep, no_side, none)
+        options = [door.sign * _wrap(_angle(s * n_door) - (yaw + math.pi)) for s in (1.0, -1.0)]
+    else:
+        pts, offset = face
+        rot = rot_z(yaw)
+        # object-frame x and z first (`_robust_normal` fits in the first two coordinates)
+        local = np.column_stack([pts @ rot[:, 0], pts[:, 2], pts @ rot[:, 1]])
+        n_xz, keep, _ = _robust_normal((local, offset), keep, no_side, none)
+        x0 = np.array([1.0, 0.0, 0.0])  # the door's x at q = 0, into the body
+        options = []
+        for s in (1.0, -1.0):
+            n = s * np.array([n_xz[0], 0.0, n_xz[1]])
+            options.append(math.atan2(float(np.cross(x0, n) @ door.axis), float(x0 @ n)))
+    return float(np.clip(min(options, key=lambda v: abs(v - q)), 0.0, Q_MAX)), keep
 
 
 def _face_inliers(
@@ -867,6 +926,85 @@ def search_opening(
         return h.with_pose(h.x, h.y, h.z + d, h.yaw, h.qs)
 
     return _line_search(up, -SEARCH_SPAN, SEARCH_SPAN, renderer, observed)
+
+
+def front_width(
+    h: Hypothesis,
+    observed: NDArray[np.floating],
+    camera: CameraIntrinsics,
+    rays: NDArray[np.float32],
+    thickness: float,
+) -> Hypothesis | None:
+    """`h` with the width its front shows, the side facing the camera held in place (the
+    base moved across by half the change); None when the front shows too little. A door
+    hinged at its bottom edge turns about an axis across the front, so no door plane
+    meets a side (`_fit_width`'s hinge): the side in view fixes where that side is, not
+    how far the other one lies. The front does: the observed points within `WIDTH_BAND`
+    of the front's plane (the closed door's face and the control panel's, `thickness`
+    before the body; or the body's own rim, the door opened), over the body's height and
+    within `WIDTH_SPAN` of its sides, reach across the front to its far edge against the
+    background. That edge is the points' (1 - `WIDTH_QUANTILE`) quantile across, half a
+    pixel's width on the front beyond (`MIN_WIDTH_POINTS` at least)."""
+    c, s = math.cos(h.yaw), math.sin(h.yaw)  # the object's y in the camera frame: (-s, c)
+    seen = 1.0 if h.x * s - h.y * c > 0 else -1.0  # the side whose normal faces the camera
+    valid = observed > 0
+    points = rays[valid].astype(np.float64) * observed[valid, None]
+    local = (points - np.array([h.x, h.y, h.z])) @ rot_z(h.yaw)
+    front = -h.depth / 2
+    near = np.abs(local[:, 0] - (front - thickness)) < WIDTH_BAND
+    near |= np.abs(local[:, 0] - front) < WIDTH_BAND
+    near &= (local[:, 2] > 0.0) & (local[:, 2] < h.height)
+    near &= np.abs(local[:, 1]) < h.width / 2 + WIDTH_SPAN
+    if int(near.sum()) < MIN_WIDTH_POINTS:
+        return None
+    across = -seen * local[near, 1]  # towards the far side
+    # one pixel across the front: its width at the object's distance over the cosine of
+    # the angle between the line of sight and the front's normal
+    incidence = max(abs(math.cos(h.yaw - math.atan2(h.y, h.x))), 0.2)
+    pixel = math.hypot(h.x, h.y) / camera.fx / incidence
+    far = float(np.quantile(across, WIDTH_QUANTILE)) + 0.5 * pixel
+    width = max(far + h.width / 2, 0.1)  # the side in view lies at -h.width / 2 across
+    d = width - h.width
+    return dataclasses.replace(h, width=width, x=h.x + seen * d / 2 * s, y=h.y - seen * d / 2 * c)
+
+
+def flap_panel_share(
+    h: Hypothesis,
+    door: _Door,
+    observed: NDArray[np.floating],
+    camera: CameraIntrinsics,
+    rays: NDArray[np.float32],
+    parts: PartsConfig,
+) -> float | None:
+    """The share of the front's width a control panel beside an opened flap takes, read
+    off the door's edge on the panel's side; None below `PANEL_SHARE_Q` (a closed door
+    lies in the panel's plane: nothing in the depth separates them) or when the door shows
+    too little. The points within `WIDTH_BAND` of either of the door's broad faces over
+    the upper part of its height (`PANEL_SHARE_ROWS`) and out of the panel's plane by as
+    much (near the hinge the door still lies in it) give its edge as their
+    `WIDTH_QUANTILE` quantile towards the panel, half a pixel beyond; the panel is what
+    lies past that edge and a `gap`. The share is clipped to `PANEL_SHARES`."""
+    (q,) = h.qs
+    if q < PANEL_SHARE_Q:
+        return None
+    valid = observed > 0
+    points = rays[valid].astype(np.float64) * observed[valid, None]
+    body = (points - np.array([h.x, h.y, h.z])) @ rot_z(h.yaw)
+    local = (body - door.origin) @ door.turn(q)  # the door's frame: x its normal, z up it
+    thick = parts.door_thickness
+    on = (np.abs(local[:, 0] + thick) < WIDTH_BAND) | (np.abs(local[:, 0]) < WIDTH_BAND)
+    low, high = PANEL_SHARE_ROWS
+    on &= (local[:, 2] > low * h.height) & (local[:, 2] < high * h.height)
+    on &= np.abs(body[:, 1]) < h.width / 2 + WIDTH_BAND
+    on &= body[:, 0] < -h.depth / 2 - thick - WIDTH_BAND  # out of the panel's plane
+    if int(on.sum()) < MIN_WIDTH_POINTS:
+        return None
+    panel = -1.0 if float(door.origin[1]) > 0 else 1.0  # the panel's side of the door
+    incidence = max(abs(math.cos(h.yaw - math.atan2(h.y, h.x))), 0.2)
+    pixel = math.hypot(h.x, h.y) / camera.fx / incidence
+    edge = float(np.quantile(panel * body[on, 1], WIDTH_QUANTILE)) + 0.5 * pixel
+    share = (h.width / 2 - edge - parts.gap) / h.width
+    return float(np.clip(share, *PANEL_SHARES))
 
 
 def _line_search(
@@ -1188,11 +1326,21 @@ def _refit_width(
     rays = camera.ray_directions()
     renderer = PosedRenderer(h, category, parts, camera)
     try:
-        image, door_poses = renderer.render(h)
-        # the first round's tolerance: a side 4 cm from where the width puts it is still its
-        faces = _faces(h, image, door_poses, renderer.doors, observed, rays, TOLERANCES[0],
-                       renderer.door_thickness)  # fmt: skip
-        start = _fit_width(h, faces, renderer.doors)
+        if renderer.doors[0].flap:  # no hinge meets a side: the front's width, the panel's
+            start: Hypothesis | None = front_width(
+                h, observed, camera, rays, renderer.door_thickness
+            )
+            share = flap_panel_share(start or h, renderer.doors[0], observed, camera, rays,
+                                     parts)  # fmt: skip
+            if share is not None:
+                parts = parts.model_copy(update={"control_panel_fraction": share})
+                start = start or h
+        else:
+            image, door_poses = renderer.render(h)
+            # the first round's tolerance: a side 4 cm from where the width puts it is still its
+            faces = _faces(h, image, door_poses, renderer.doors, observed, rays, TOLERANCES[0],
+                           renderer.door_thickness)  # fmt: skip
+            start = _fit_width(h, faces, renderer.doors)
     finally:
         renderer.close()
     if start is None:
@@ -1226,11 +1374,11 @@ def _fit_width(h: Hypothesis, faces: _Faces, doors: Sequence[_Door]) -> Hypothes
     rows.append(np.column_stack([np.full(len(half), b[0]), np.full(len(half), b[1]), half]))
     rhs.append(pts[inl_side] @ b)
     for door, q, (pts, offset), keep in zip(doors, h.qs, faces.doors, inl_doors, strict=True):
-        d = (rot @ rot_z(door.sign * q))[:, 0]  # the door's x in the camera frame
+        d = (rot @ door.turn(q))[:, 0]  # the door's x in the camera frame
         fixed = rot @ np.array([door.origin[0], 0.0, door.origin[2]])
         across = door.origin[1] / h.width * float(d @ b)  # the hinge's y scales with the width
         rows.append(np.tile([d[0], d[1], across], (int(keep.sum()), 1)))
-        rhs.append(pts[keep] @ d - d @ fixed - offset[keep])
+        rhs.append(pts[keep] @ d - d @ fixed - offset[keep] - d[2] * h.z)
     prior = math.sqrt(PRIOR_WEIGHT)
     rows.append(prior * np.eye(3))
     rhs.append(prior * np.array([h.x, h.y, h.width]))
