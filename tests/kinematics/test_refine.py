@@ -1011,6 +1011,17 @@ def test_the_front_fit_reads_a_door_turned_about_its_hinge(side):
     assert front_fit(closed, side) == pytest.approx(front_fit(closed, -side), abs=1e-6)
 
 
+def test_a_front_with_no_points_near_its_plane_has_no_profile():
+    """A hypothesis whose front spans hundreds of pixels of an image with nothing near
+    its plane (an empty image, or one of a wall far behind it) has no profile, and the
+    front test abstains, instead of raising (an `evaluate mdn` run once stopped on it)."""
+    truth = Hypothesis(1.2, 0.0, -0.3, 0.2, 0.4, 0.6, 0.35, 1, (0.05,))
+    for depth in (np.zeros((DETAIL.height, DETAIL.width), np.float32),
+                  np.full((DETAIL.height, DETAIL.width), 4.0, np.float32)):  # fmt: skip
+        assert front_profile(truth, SEAMED, depth, DETAIL) is None
+        assert front_side(_both_sides(truth), COLUMNS, "microwave", SEAMED, depth, DETAIL) is None
+
+
 @pytest.mark.parametrize("chirality", [1, -1])
 def test_the_fronts_shape_names_a_nearly_closed_doors_side(chirality):
     """A microwave door open 4 deg, 4 cm thick, seen turned 0.6 rad at 640x480 (where the

@@ -1690,6 +1690,8 @@ def front_profile(
         & (np.abs(local[:, 1]) < h.width / 2)
         & (np.abs(local[:, 0] - front) < FRONT_BAND)
     )
+    if int(on.sum()) < MIN_BIN_POINTS * math.ceil(FRONT_SEEN * SEAM_BINS):
+        return None  # too few points to see `FRONT_SEEN` of the bins (none: nothing to bin)
     across = ((local[on, 1] + h.width / 2) / h.width * SEAM_BINS).astype(int)
     across = np.clip(across, 0, SEAM_BINS - 1)
     bins = np.arange(SEAM_BINS)
