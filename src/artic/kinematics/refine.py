@@ -80,8 +80,11 @@ down the middle of the front, a panel's width from one end.
 
 A toaster's door is a flap hinged at its bottom edge (`_Door.flap`): its plane is fitted
 across its horizontal axis, in the object's (x, z) plane (`_door_q`), and its normal's
-part along z enters the position's least squares at the base height read off the bottom
-edge. No door plane then meets a side, so the chosen candidate's width comes from the
+part along z enters the position's least squares at the base height held. That height is
+not read off the bottom edge (a 20-50 cm toaster's edge, at 1-2 cm a pixel, reads about
+0.6 cm high, and an opened flap lies across it) but searched on the depth residual
+before the first round and after it (`search_height`, the drawer's search upwards). No
+door plane meets a side, so the chosen candidate's width comes from the
 front's far edge against the background (`front_width`) instead of `_fit_width`'s hinge,
 and an opened flap's edge beside the control panel gives the panel's share of the width
 (`flap_panel_share`), which places the door across the front.
@@ -171,6 +174,9 @@ Q_PRIOR_WEIGHT = 0.01
 SEARCH_STEP = 0.01
 #: how far the search moves a drawer's base along its front and up or down (m)
 SEARCH_SPAN = 0.05
+#: a flap's base height is searched this far either side of the start's and the first
+#: round's (m): the network's is within about a centimetre (`search_height`)
+FLAP_HEIGHT_SPAN = 0.02
 #: how far beyond the hypothesis' sides a flap's front is looked for, and how close to
 #: its plane (m, `front_width`)
 WIDTH_SPAN = 0.12
@@ -590,7 +596,7 @@ def _faces(
             on = (part == door.part) & (
                 (np.abs(local[:, 0] + thickness) < FACE_EPS) | (np.abs(local[:, 0]) < FACE_EPS)
             )
-            if door.at_base and not door.flap:
+            if door.at_base:
                 ends_at_base = ends_at_base | on
         on &= near(local, local_seen, 0)
         if door.at_base and h.joint_type == "revolute" and not door.flap:
@@ -600,7 +606,9 @@ def _faces(
         door_faces.append((p_observed[on], local[on, 0]))
     front &= near(body, body_seen, 0)
     side &= near(body, body_seen, 1)
-    bottom = _bottom_edge(rows, cols, ends_at_base, observed, rendered, rays)
+    # a flap's base height is searched on the residual instead (`search_height`)
+    bottom = (np.zeros(0) if any(door.flap for door in doors)
+              else _bottom_edge(rows, cols, ends_at_base, observed, rendered, rays))  # fmt: skip
     door_bottoms = [_face_bottoms(rows[m], cols[m], frame, observed, rays)
                     for m, frame in zip(door_level, door_frames, strict=True)]  # fmt: skip
     return _Faces(
@@ -922,10 +930,24 @@ def search_opening(
 
     h = _line_search(across, -SEARCH_SPAN, SEARCH_SPAN, renderer, observed)
 
+    return search_height(h, renderer, observed)
+
+
+def search_height(
+    h: Hypothesis,
+    renderer: PosedRenderer,
+    observed: NDArray[np.floating],
+    span: float = SEARCH_SPAN,
+) -> Hypothesis:
+    """The base height of the lowest depth residual within `span` of `h`'s
+    (`_line_search`): where the bottom edge does not give it (under an open drawer, whose
+    bottom hides the body's edge below it; a toaster's, whose edge at this camera's pixel
+    of 1-2 cm reads about 0.6 cm high and misses where an opened flap lies across it)."""
+
     def up(d: float) -> Hypothesis:
         return h.with_pose(h.x, h.y, h.z + d, h.yaw, h.qs)
 
-    return _line_search(up, -SEARCH_SPAN, SEARCH_SPAN, renderer, observed)
+    return _line_search(up, -span, span, renderer, observed)
 
 
 def front_width(
@@ -1110,10 +1132,15 @@ def refine_hypothesis(
     result, the one with the lowest depth residual, and that residual. For a drawer, the
     first round leaves the body's front rim out of the fit and is followed by the search
     along its opening (`search_opening`): the rim is a 2 cm strip, and from a start a few
-    centimetres off its pixels see into the drawer, not the rim."""
+    centimetres off its pixels see into the drawer, not the rim. For a flap (the toaster's
+    door), the base height, which no bottom edge gives it, is searched (`search_height`)
+    before the first round (its points are assigned at that height) and after it."""
     h = start
     image, door_poses = renderer.render(h)
     best = (h, depth_residual(image.depth, observed))
+    if renderer.doors[0].flap:
+        h = search_height(h, renderer, observed, FLAP_HEIGHT_SPAN)
+        image, door_poses = renderer.render(h)
     for k in range(ITERATIONS):
         tolerance = TOLERANCES[min(k, len(TOLERANCES) - 1)]
         faces = _faces(h, image, door_poses, renderer.doors, observed, rays, tolerance,
@@ -1121,6 +1148,8 @@ def refine_hypothesis(
         h = _fit(h, faces, renderer.doors, seed, rim=k > 0)
         if k == 0 and h.joint_type == "prismatic":
             h = search_opening(h, renderer, observed)
+        elif k == 0 and renderer.doors[0].flap:
+            h = search_height(h, renderer, observed, FLAP_HEIGHT_SPAN)
         image, door_poses = renderer.render(h)
         residual = depth_residual(image.depth, observed)
         if residual < best[1]:
