@@ -16,8 +16,8 @@ refining) on withheld training-generator objects, the denominator of `ratio`.
 refrigerator): both = object i hinged on the camera's right (chirality +1) for even i,
 left (-1) for odd i, so exactly half each. The others (cabinet2, toaster, drawer: training
 chirality [1], no hinge side) take only "both"; their images have side "none" and one
-summary row, "both". `--no-refine` is required for the toaster (the refinement does not
-support it: predict returns the network's estimate, and its report has no refined rows).
+summary row, "both". `--no-refine`: the network's estimate (`artic predict --no-refine`),
+scored against the report's "Ours" rows.
 `--sizes`: cabinets and two-door cabinets of Table A.1 (56-64 x 60-140 x 60-140 cm) or
 of the thesis' generator (half of them: 28-32 x 30-70 x 30-70 cm); the other categories
 have one range, Table A.1's (`SIZES`), so the option only names the row for them.
@@ -1661,7 +1661,6 @@ def run(
 
     from artic.artifacts.formats import write_csv, write_json
     from artic.kinematics.predict import predict_image
-    from artic.kinematics.refine import SUPPORTED
     from artic.objects.labels import label_columns
     from artic.render.backend import make_backend
 
@@ -1675,8 +1674,6 @@ def run(
         raise InputError(f"--sides: {sides!r}; expected both, left or right")
     if sides != "both" and category not in SIDED:
         raise InputError(f"--sides: {category} has no hinge side to draw; expected both")
-    if refine and category not in SUPPORTED:
-        raise InputError(f"--category: the refinement does not support {category}; add --no-refine")
     if sizes not in CABINET_SIZES:
         raise InputError(f"--sizes: {sizes!r}; expected table_a1 or generator")
     if builder not in ("bench", "artic"):

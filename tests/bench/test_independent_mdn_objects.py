@@ -351,7 +351,6 @@ def test_tiny_end_to_end_writes_both_csvs(
     ("change", "message"),
     [
         ({"--category": "lamp"}, "--category"),
-        ({"--category": "toaster"}, "--no-refine"),
         ({"--category": "drawer", "--sides": "left"}, "no hinge side"),
         ({"--objects": "0"}, "--objects"),
         ({"--model": "no/such/model"}, "--model"),
