@@ -965,13 +965,11 @@ def front_width(
     of the front's plane (the closed door's face and the control panel's, `thickness`
     before the body; or the body's own rim, the door opened), over the body's height and
     within `WIDTH_SPAN` of its sides, reach across the front to its far edge against the
-    background. That edge is the points' (1 - `WIDTH_QUANTILE`) quantile across, half a
-    pixel's width on the front beyond (`MIN_WIDTH_POINTS` at least)."""
+    background. That edge is their `WIDTH_QUANTILE` quantile towards the far side, half a
+    pixel beyond (`_pixel_across`; `MIN_WIDTH_POINTS` at least)."""
     c, s = math.cos(h.yaw), math.sin(h.yaw)  # the object's y in the camera frame: (-s, c)
     seen = 1.0 if h.x * s - h.y * c > 0 else -1.0  # the side whose normal faces the camera
-    valid = observed > 0
-    points = rays[valid].astype(np.float64) * observed[valid, None]
-    local = (points - np.array([h.x, h.y, h.z])) @ rot_z(h.yaw)
+    local = _object_points(h, observed, rays)
     front = -h.depth / 2
     near = np.abs(local[:, 0] - (front - thickness)) < WIDTH_BAND
     near |= np.abs(local[:, 0] - front) < WIDTH_BAND
@@ -980,14 +978,26 @@ def front_width(
     if int(near.sum()) < MIN_WIDTH_POINTS:
         return None
     across = -seen * local[near, 1]  # towards the far side
-    # one pixel across the front: its width at the object's distance over the cosine of
-    # the angle between the line of sight and the front's normal
-    incidence = max(abs(math.cos(h.yaw - math.atan2(h.y, h.x))), 0.2)
-    pixel = math.hypot(h.x, h.y) / camera.fx / incidence
-    far = float(np.quantile(across, WIDTH_QUANTILE)) + 0.5 * pixel
+    far = float(np.quantile(across, WIDTH_QUANTILE)) + 0.5 * _pixel_across(h, camera)
     width = max(far + h.width / 2, 0.1)  # the side in view lies at -h.width / 2 across
     d = width - h.width
     return dataclasses.replace(h, width=width, x=h.x + seen * d / 2 * s, y=h.y - seen * d / 2 * c)
+
+
+def _object_points(
+    h: Hypothesis, observed: NDArray[np.floating], rays: NDArray[np.float32]
+) -> Array:
+    """(N, 3) the valid pixels of `observed` back-projected, in `h`'s object frame."""
+    valid = observed > 0
+    points = rays[valid].astype(np.float64) * observed[valid, None]
+    return np.asarray((points - np.array([h.x, h.y, h.z])) @ rot_z(h.yaw))
+
+
+def _pixel_across(h: Hypothesis, camera: CameraIntrinsics) -> float:
+    """One pixel's width across `h`'s front (m): a pixel at the object's distance over the
+    cosine of the angle between the line of sight and the front's normal (at most 5x)."""
+    incidence = max(abs(math.cos(h.yaw - math.atan2(h.y, h.x))), 0.2)
+    return math.hypot(h.x, h.y) / camera.fx / incidence
 
 
 def flap_panel_share(
@@ -1009,9 +1019,7 @@ def flap_panel_share(
     (q,) = h.qs
     if q < PANEL_SHARE_Q:
         return None
-    valid = observed > 0
-    points = rays[valid].astype(np.float64) * observed[valid, None]
-    body = (points - np.array([h.x, h.y, h.z])) @ rot_z(h.yaw)
+    body = _object_points(h, observed, rays)
     local = (body - door.origin) @ door.turn(q)  # the door's frame: x its normal, z up it
     thick = parts.door_thickness
     on = (np.abs(local[:, 0] + thick) < WIDTH_BAND) | (np.abs(local[:, 0]) < WIDTH_BAND)
@@ -1022,9 +1030,7 @@ def flap_panel_share(
     if int(on.sum()) < MIN_WIDTH_POINTS:
         return None
     panel = -1.0 if float(door.origin[1]) > 0 else 1.0  # the panel's side of the door
-    incidence = max(abs(math.cos(h.yaw - math.atan2(h.y, h.x))), 0.2)
-    pixel = math.hypot(h.x, h.y) / camera.fx / incidence
-    edge = float(np.quantile(panel * body[on, 1], WIDTH_QUANTILE)) + 0.5 * pixel
+    edge = float(np.quantile(panel * body[on, 1], WIDTH_QUANTILE)) + 0.5 * _pixel_across(h, camera)
     share = (h.width / 2 - edge - parts.gap) / h.width
     return float(np.clip(share, *PANEL_SHARES))
 
