@@ -22,6 +22,7 @@ import pytest
 from artic.artifacts.depth_dataset import DepthDataset
 from artic.geometry.camera import CameraIntrinsics
 from artic.kinematics.refine import (
+    FLAP_OPEN_Q,
     FRONT_RATIO,
     HANDLE_FREE,
     HANDLE_Q_MAX,
@@ -250,7 +251,9 @@ def test_plane_fit_recovers_a_flaps_angle_and_its_hinge(yaw, q, y):
     joint origin, the bottom edge's centre) lands within 1 cm, from a start 3 cm, 1.5 cm,
     0.05 rad and 0.08 rad off (a side in view). A door dropped 75 deg covers the front's
     lower part, and the first round's points, assigned 1.5 cm off in height, mislead it:
-    its yaw within 3 deg (docs/kinematics.md, "A flap")."""
+    its yaw within 3 deg. A closed door's front is flat, so its height stays the start's
+    and the hinge lands within 1 cm across and along the front (docs/kinematics.md, "A
+    flap")."""
     truth = _toaster(yaw, q, y)
     observed = _image(truth, "toaster")
     start = truth.with_pose(truth.x + 0.03, truth.y - 0.03, truth.z + 0.015, truth.yaw + 0.05,
@@ -258,9 +261,13 @@ def test_plane_fit_recovers_a_flaps_angle_and_its_hinge(yaw, q, y):
     h, residual, refined = _refined(start, "toaster", observed)
     assert abs(math.degrees(h.yaw - truth.yaw)) < (3.0 if q > 1.0 else 1.5)
     assert abs(math.degrees(h.qs[0] - truth.qs[0])) < 1.0
-    hinge_error = np.linalg.norm(_origin(refined) - _origin(_label(truth, "toaster")))
-    assert hinge_error < 0.01, f"hinge {100 * hinge_error:.2f} cm off"
-    assert residual < 0.006
+    off = _origin(refined) - _origin(_label(truth, "toaster"))
+    opened = start.qs[0] >= FLAP_OPEN_Q
+    if not opened:  # the silhouette 1.5 cm off in height leaves a residual of about 1 cm
+        assert h.z == start.z
+        off = off[:2]
+    assert np.linalg.norm(off) < 0.01, f"hinge {100 * np.linalg.norm(off):.2f} cm off"
+    assert residual < (0.006 if opened else 0.015)
 
 
 @pytest.mark.parametrize("share", [0.18, 0.32])

@@ -82,9 +82,11 @@ A toaster's door is a flap hinged at its bottom edge (`_Door.flap`): its plane i
 across its horizontal axis, in the object's (x, z) plane (`_door_q`), and its normal's
 part along z enters the position's least squares at the base height held. That height is
 not read off the bottom edge (a 20-50 cm toaster's edge, at 1-2 cm a pixel, reads about
-0.6 cm high, and an opened flap lies across it) but searched on the depth residual
-before the first round and after it (`search_height`, the drawer's search upwards). No
-door plane meets a side, so the chosen candidate's width comes from the
+0.6 cm high, and an opened flap lies across it) but, the door opened `FLAP_OPEN_Q` or
+more, searched on the depth residual before the first round and after it
+(`search_height`, the drawer's search upwards); a closed flap's front is flat, and the
+height stays the start's (the network's is better than a silhouette's pixels). No door
+plane meets a side, so the chosen candidate's width comes from the
 front's far edge against the background (`front_width`) instead of `_fit_width`'s hinge,
 and an opened flap's edge beside the control panel gives the panel's share of the width
 (`flap_panel_share`), which places the door across the front.
@@ -184,9 +186,11 @@ WIDTH_BAND = 0.03
 #: the quantile across the front taken as its far edge's last pixel, and the fewest points
 WIDTH_QUANTILE = 0.99
 MIN_WIDTH_POINTS = 100
-#: a flap's control panel share is read off the door opened at least this far, over this
-#: part of the door's height, and kept within these shares (`flap_panel_share`)
-PANEL_SHARE_Q = math.radians(15.0)
+#: a flap opened at least this far stands out of the front: its depth changes along its
+#: height, which fixes the base height (`search_height`), and its edge shows beside the
+#: control panel (`flap_panel_share`); a closed one's front is flat
+FLAP_OPEN_Q = math.radians(15.0)
+#: the part of the door's height, and the range of shares, of `flap_panel_share`
 PANEL_SHARE_ROWS = (0.3, 1.0)
 PANEL_SHARES = (0.1, 0.4)
 #: the base height is read off the bottom silhouette edge when it has this many pixels
@@ -1009,7 +1013,7 @@ def flap_panel_share(
     parts: PartsConfig,
 ) -> float | None:
     """The share of the front's width a control panel beside an opened flap takes, read
-    off the door's edge on the panel's side; None below `PANEL_SHARE_Q` (a closed door
+    off the door's edge on the panel's side; None below `FLAP_OPEN_Q` (a closed door
     lies in the panel's plane: nothing in the depth separates them) or when the door shows
     too little. The points within `WIDTH_BAND` of either of the door's broad faces over
     the upper part of its height (`PANEL_SHARE_ROWS`) and out of the panel's plane by as
@@ -1017,7 +1021,7 @@ def flap_panel_share(
     `WIDTH_QUANTILE` quantile towards the panel, half a pixel beyond; the panel is what
     lies past that edge and a `gap`. The share is clipped to `PANEL_SHARES`."""
     (q,) = h.qs
-    if q < PANEL_SHARE_Q:
+    if q < FLAP_OPEN_Q:
         return None
     body = _object_points(h, observed, rays)
     local = (body - door.origin) @ door.turn(q)  # the door's frame: x its normal, z up it
@@ -1139,12 +1143,13 @@ def refine_hypothesis(
     first round leaves the body's front rim out of the fit and is followed by the search
     along its opening (`search_opening`): the rim is a 2 cm strip, and from a start a few
     centimetres off its pixels see into the drawer, not the rim. For a flap (the toaster's
-    door), the base height, which no bottom edge gives it, is searched (`search_height`)
-    before the first round (its points are assigned at that height) and after it."""
+    door) opened `FLAP_OPEN_Q` or more, the base height, which no bottom edge gives it,
+    is searched (`search_height`) before the first round (its points are assigned at that
+    height) and after it; a closed flap's stays the start's."""
     h = start
     image, door_poses = renderer.render(h)
     best = (h, depth_residual(image.depth, observed))
-    if renderer.doors[0].flap:
+    if renderer.doors[0].flap and h.qs[0] >= FLAP_OPEN_Q:
         h = search_height(h, renderer, observed, FLAP_HEIGHT_SPAN)
         image, door_poses = renderer.render(h)
     for k in range(ITERATIONS):
@@ -1154,7 +1159,7 @@ def refine_hypothesis(
         h = _fit(h, faces, renderer.doors, seed, rim=k > 0)
         if k == 0 and h.joint_type == "prismatic":
             h = search_opening(h, renderer, observed)
-        elif k == 0 and renderer.doors[0].flap:
+        elif k == 0 and renderer.doors[0].flap and h.qs[0] >= FLAP_OPEN_Q:
             h = search_height(h, renderer, observed, FLAP_HEIGHT_SPAN)
         image, door_poses = renderer.render(h)
         residual = depth_residual(image.depth, observed)
