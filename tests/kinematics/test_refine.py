@@ -289,12 +289,11 @@ def test_an_opened_flaps_edge_gives_the_control_panels_share(share, yaw):
     try:
         true_label = renderer.label(truth, "toaster", COLUMNS)
         door = renderer.doors[0]
-        rays = CAMERA.ray_directions()
-        assert flap_panel_share(truth, door, observed, CAMERA, rays, parts) == pytest.approx(
+        assert flap_panel_share(truth, door, observed, CAMERA, parts) == pytest.approx(
             share, abs=0.02
         )
         closed = dataclasses.replace(truth, qs=(0.1,))
-        assert flap_panel_share(closed, door, observed, CAMERA, rays, parts) is None
+        assert flap_panel_share(closed, door, observed, CAMERA, parts) is None
     finally:
         renderer.close()
     assert np.linalg.norm(_origin(estimate) - _origin(true_label)) > 0.015

@@ -955,11 +955,7 @@ def search_height(
 
 
 def front_width(
-    h: Hypothesis,
-    observed: NDArray[np.floating],
-    camera: CameraIntrinsics,
-    rays: NDArray[np.float32],
-    thickness: float,
+    h: Hypothesis, observed: NDArray[np.floating], camera: CameraIntrinsics, thickness: float
 ) -> Hypothesis | None:
     """`h` with the width its front shows, the side facing the camera held in place (the
     base moved across by half the change); None when the front shows too little. A door
@@ -973,7 +969,7 @@ def front_width(
     pixel beyond (`_pixel_across`; `MIN_WIDTH_POINTS` at least)."""
     c, s = math.cos(h.yaw), math.sin(h.yaw)  # the object's y in the camera frame: (-s, c)
     seen = 1.0 if h.x * s - h.y * c > 0 else -1.0  # the side whose normal faces the camera
-    local = _object_points(h, observed, rays)
+    local = _object_points(h, observed, camera)
     front = -h.depth / 2
     near = np.abs(local[:, 0] - (front - thickness)) < WIDTH_BAND
     near |= np.abs(local[:, 0] - front) < WIDTH_BAND
@@ -988,13 +984,12 @@ def front_width(
     return dataclasses.replace(h, width=width, x=h.x + seen * d / 2 * s, y=h.y - seen * d / 2 * c)
 
 
-def _object_points(
-    h: Hypothesis, observed: NDArray[np.floating], rays: NDArray[np.float32]
-) -> Array:
-    """(N, 3) the valid pixels of `observed` back-projected, in `h`'s object frame."""
-    valid = observed > 0
-    points = rays[valid].astype(np.float64) * observed[valid, None]
-    return np.asarray((points - np.array([h.x, h.y, h.z])) @ rot_z(h.yaw))
+def _object_points(h: Hypothesis, depth: NDArray[np.floating], camera: CameraIntrinsics) -> Array:
+    """(N, 3) the valid pixels of `depth` (H, W metres in `camera`; NaN is no return)
+    back-projected (`CameraIntrinsics.back_project`), in `h`'s object frame."""
+    pose = h.pose_matrix()
+    image = np.where(np.isfinite(depth), depth, 0)
+    return np.asarray((camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3])
 
 
 def _pixel_across(h: Hypothesis, camera: CameraIntrinsics) -> float:
@@ -1009,7 +1004,6 @@ def flap_panel_share(
     door: _Door,
     observed: NDArray[np.floating],
     camera: CameraIntrinsics,
-    rays: NDArray[np.float32],
     parts: PartsConfig,
 ) -> float | None:
     """The share of the front's width a control panel beside an opened flap takes, read
@@ -1023,7 +1017,7 @@ def flap_panel_share(
     (q,) = h.qs
     if q < FLAP_OPEN_Q:
         return None
-    body = _object_points(h, observed, rays)
+    body = _object_points(h, observed, camera)
     local = (body - door.origin) @ door.turn(q)  # the door's frame: x its normal, z up it
     thick = parts.door_thickness
     on = (np.abs(local[:, 0] + thick) < WIDTH_BAND) | (np.abs(local[:, 0]) < WIDTH_BAND)
@@ -1149,7 +1143,7 @@ def refine_hypothesis(
     h = start
     image, door_poses = renderer.render(h)
     best = (h, depth_residual(image.depth, observed))
-    if renderer.doors[0].flap and h.qs[0] >= FLAP_OPEN_Q:
+    if _opened_flap(renderer, h):
         h = search_height(h, renderer, observed, FLAP_HEIGHT_SPAN)
         image, door_poses = renderer.render(h)
     for k in range(ITERATIONS):
@@ -1159,13 +1153,18 @@ def refine_hypothesis(
         h = _fit(h, faces, renderer.doors, seed, rim=k > 0)
         if k == 0 and h.joint_type == "prismatic":
             h = search_opening(h, renderer, observed)
-        elif k == 0 and renderer.doors[0].flap and h.qs[0] >= FLAP_OPEN_Q:
+        elif k == 0 and _opened_flap(renderer, h):
             h = search_height(h, renderer, observed, FLAP_HEIGHT_SPAN)
         image, door_poses = renderer.render(h)
         residual = depth_residual(image.depth, observed)
         if residual < best[1]:
             best = (h, residual)
     return best
+
+
+def _opened_flap(renderer: PosedRenderer, h: Hypothesis) -> bool:
+    """`h`'s door is a flap opened `FLAP_OPEN_Q` or more (its height is searched)."""
+    return renderer.doors[0].flap and h.qs[0] >= FLAP_OPEN_Q
 
 
 @functools.cache
@@ -1367,11 +1366,8 @@ def _refit_width(
     renderer = PosedRenderer(h, category, parts, camera)
     try:
         if renderer.doors[0].flap:  # no hinge meets a side: the front's width, the panel's
-            start: Hypothesis | None = front_width(
-                h, observed, camera, rays, renderer.door_thickness
-            )
-            share = flap_panel_share(start or h, renderer.doors[0], observed, camera, rays,
-                                     parts)  # fmt: skip
+            start: Hypothesis | None = front_width(h, observed, camera, renderer.door_thickness)
+            share = flap_panel_share(start or h, renderer.doors[0], observed, camera, parts)
             if share is not None:
                 parts = parts.model_copy(update={"control_panel_fraction": share})
                 start = start or h
@@ -1418,7 +1414,7 @@ def _fit_width(h: Hypothesis, faces: _Faces, doors: Sequence[_Door]) -> Hypothes
         fixed = rot @ np.array([door.origin[0], 0.0, door.origin[2]])
         across = door.origin[1] / h.width * float(d @ b)  # the hinge's y scales with the width
         rows.append(np.tile([d[0], d[1], across], (int(keep.sum()), 1)))
-        rhs.append(pts[keep] @ d - d @ fixed - offset[keep] - d[2] * h.z)
+        rhs.append(pts[keep] @ d - d @ fixed - offset[keep])
     prior = math.sqrt(PRIOR_WEIGHT)
     rows.append(prior * np.eye(3))
     rhs.append(prior * np.array([h.x, h.y, h.width]))
@@ -1721,8 +1717,7 @@ def front_profile(
         return None
     from scipy import ndimage
 
-    image = np.where(np.isfinite(depth), depth, 0)
-    local = (camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3]
+    local = _object_points(h, depth, camera)
     up = local[:, 2] / h.height
     on = (
         (up > PANEL_ROWS[0])
