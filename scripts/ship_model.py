@@ -21,6 +21,11 @@ stores a shipped model's weights in half precision (`artic.artifacts.model_store
 halve_shipped`): half the bytes; its card loses the figures measured on the old bytes, so
 evaluate it again and re-card it as above (docs/models.md).
 
+    python scripts/ship_model.py models/segmenter/storage_furniture --inference passes=3
+
+changes a shipped segmenter's saved inference settings (`artic.artifacts.model_store.
+set_inference_shipped`; the weights stay); as with --half, evaluate it again and re-card it.
+
 Every run also brings the shipped labellers' compiled programs (`models/compiled/`,
 `artic.hierarchy.compiled`) up to date; `python scripts/ship_model.py --programs` does
 only that (needed after an edit of `artic/hierarchy/gnn.py`: a test says so).
@@ -29,14 +34,17 @@ only that (needed after an edit of `artic/hierarchy/gnn.py`: a test says so).
 from __future__ import annotations
 
 import argparse
+import json
 import subprocess
 from pathlib import Path
+from typing import Any
 
 from artic.artifacts.model_store import (
     CARD_JSON,
     MANIFEST,
     halve_shipped,
     recard_shipped,
+    set_inference_shipped,
     ship_model,
 )
 from artic.errors import InputError
@@ -55,6 +63,20 @@ def _commit(folder: Path) -> str:
     return done.stdout.strip() if done.returncode == 0 else "unknown"
 
 
+def _settings(pairs: list[str], parser: argparse.ArgumentParser) -> dict[str, Any]:
+    """KEY=VALUE pairs -> {key: value}, each value read as JSON where it parses."""
+    settings: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            parser.error(f"--inference: expected KEY=VALUE, got {pair!r}")
+        try:
+            settings[key] = json.loads(value)
+        except json.JSONDecodeError:
+            settings[key] = value
+    return settings
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description="ship a trained model with its card")
     parser.add_argument(
@@ -70,6 +92,12 @@ def main() -> None:
     parser.add_argument(
         "--half", action="store_true", help="store a shipped model's weights as float16"
     )
+    parser.add_argument(
+        "--inference",
+        nargs="+",
+        metavar="KEY=VALUE",
+        help="set a shipped segmenter's inference settings (values read as JSON)",
+    )
     parser.add_argument("--commit", help="default: the git commit of the folder's checkout")
     parser.add_argument("--preset", default="", help="when the manifest predates recording it")
     parser.add_argument("--store", type=Path, default=STORE)
@@ -82,11 +110,13 @@ def main() -> None:
         parser.error("a model folder, or --programs")
     commit = args.commit or _commit(args.folder)
     shipped = (args.folder / CARD_JSON).is_file() and not (args.folder / MANIFEST).is_file()
-    if args.half and (not shipped or args.evaluation is not None):
-        parser.error("--half takes a shipped model's folder and no --evaluation")
+    if (args.half or args.inference) and (not shipped or args.evaluation is not None):
+        parser.error("--half and --inference take a shipped model's folder and no --evaluation")
     try:
         if args.half:
             target = halve_shipped(args.folder)
+        elif args.inference:
+            target = set_inference_shipped(args.folder, _settings(args.inference, parser))
         elif shipped and args.evaluation is not None:
             target = recard_shipped(args.folder, args.evaluation)
         else:

@@ -107,6 +107,8 @@ def test_bad_inputs_exit_2(tiny: TinyScans, tmp_path: Path) -> None:
         ((f"scans={tiny.scans}", "train.lr=-1"), "train.lr"),
         ((f"scans={tiny.scans}", "data.val_every=10"), "scan more objects"),
         ((f"scans={tiny.scans}", "inference.mirror_y=true"), "inference.mirror_y"),
+        ((f"scans={tiny.scans}", "inference.passes=2"), "inference.passes"),
+        ((f"scans={tiny.scans}", "inference.passes=0"), "inference.passes"),
     ]
     for extra, message in cases:
         code, _, err = run_cli(*ARGS, *extra, f"out={tmp_path / 'x'}")

@@ -19,18 +19,23 @@ from artic.evaluation.segmentation import (
 from artic.hierarchy.cloud_cache import cloud_features
 from artic.hierarchy.fit_segmenter import static_part_of
 from artic.hierarchy.models import load_segmenter, save_segmenter
+from artic.hierarchy.pointnet2 import farthest_point_indices
 from artic.hierarchy.segmentation import (
     MIRROR_Y,
     InferenceConfig,
     PartSegmentationNet,
     forward,
     make_optimizer,
+    normalization_frame,
+    normalize_points,
+    sample_passes,
     segment,
     train_step,
 )
 from artic.hierarchy.votes import (
     VoteOutput,
     cluster_votes,
+    merge_passes,
     part_offsets,
     seek_modes,
     sought,
@@ -251,3 +256,78 @@ def test_mirror_averaging_makes_the_outputs_mirror_equivariant() -> None:
     masks = PartSegmentationNet(tiny_config()).eval()
     with pytest.raises(InputError, match="mirror_y"):
         forward(masks, points, mirror_y=True)
+
+
+def _slabs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """n points in three 1 m slabs along x with 1 cm gaps: (points (n, 3), part (n,))."""
+    rng = np.random.default_rng(7)
+    part = rng.integers(0, 3, n)
+    points = rng.uniform(0.0, 1.0, (n, 3)).astype(np.float32)
+    points[:, 0] += part * 1.01
+    return points, part
+
+
+class _SlabOracle(PartSegmentationNet):
+    """A votes network that knows the truth: motion type = part, every offset points at
+    the mean of its part's points among those it is given (no normalisation)."""
+
+    def forward(self, points, normals=None, index=None):  # type: ignore[no-untyped-def]
+        x = points[0]
+        part = (x[:, 0] > 1.005).long() + (x[:, 0] > 2.015).long()
+        centre = torch.stack([x[part == p].mean(0) for p in range(3)])
+        logits = torch.nn.functional.one_hot(part, 4).float() * 100.0
+        return VoteOutput(logits[None], (centre[part] - x)[None], x[None])
+
+
+def test_passes_put_the_network_on_every_point_of_a_larger_cloud() -> None:
+    """`inference.passes`: disjoint farthest-point samples (the first the one-pass sample),
+    clustered together. On 1,200 points in slabs 1 cm apart, one pass of 400 labels the
+    points between samples by their nearest sample, across the gaps; three passes see
+    every point and recover the slabs exactly."""
+    points, part = _slabs(1200)
+    samples = sample_passes(points, 400, 3)
+    assert [len(s) for s in samples] == [400, 400, 400]
+    np.testing.assert_array_equal(samples[0], farthest_point_indices(points, 400))
+    np.testing.assert_array_equal(np.sort(np.concatenate(samples)), np.arange(1200))
+    assert len(sample_passes(points, 400, 10)) == 3 and len(sample_passes(points, 500, 3)) == 2
+    np.testing.assert_array_equal(sample_passes(points, 2000, 3)[0], np.arange(1200))
+    config = dataclasses.replace(tiny_config(), head="votes", normals=False, normalize=False)
+    config = dataclasses.replace(
+        config, backbone=dataclasses.replace(config.backbone, in_channels=0)
+    )
+    oracle = _SlabOracle(config)
+    one = segment(oracle, points, InferenceConfig(n_points=400, cluster_radius=0.2))
+    three = segment(oracle, points, InferenceConfig(n_points=400, cluster_radius=0.2, passes=3))
+    assert instance_iou(one.part_id, part).max(axis=0).min() < 0.99
+    np.testing.assert_allclose(instance_iou(three.part_id, part).max(axis=0), 1.0)
+    np.testing.assert_array_equal(three.motion_type, part)
+    masks = PartSegmentationNet(tiny_config()).eval()
+    with pytest.raises(InputError, match="passes"):
+        segment(masks, points, InferenceConfig(n_points=400, passes=2))
+
+
+def test_merged_passes_are_in_the_first_passes_frame() -> None:
+    """`merge_passes`: each run's normalised points and offsets mapped into the first run's
+    normalisation frame, so shifted points of every run are comparable."""
+    points, _ = _slabs(900)
+    samples = sample_passes(points, 300, 3)
+    rng = np.random.default_rng(1)
+    outputs, frames = [], []
+    for s in samples:
+        xyz = normalize_points(torch.from_numpy(points[s])[None])
+        offsets = torch.from_numpy(rng.normal(0, 0.1, (1, 300, 3)).astype(np.float32))
+        outputs.append(VoteOutput(torch.zeros(1, 300, 4), offsets, xyz))
+        frames.append(normalization_frame(points[s]))
+    merged = merge_passes(outputs, frames)
+    centre, radius = frames[0]
+    allpts = points[np.concatenate(samples)].astype(np.float64)
+    np.testing.assert_allclose(merged.xyz[0].numpy(), (allpts - centre) / radius, atol=1e-5)
+    metres = np.concatenate(
+        [
+            c + r * (o.xyz[0] + o.offsets[0]).numpy()
+            for o, (c, r) in zip(outputs, frames, strict=True)
+        ]
+    )
+    shifted = (merged.xyz[0] + merged.offsets[0]).numpy()
+    np.testing.assert_allclose(shifted, (metres - centre) / radius, atol=1e-5)
+    assert merged.motion_logits.shape == (1, 900, 4)

@@ -119,6 +119,8 @@ class ModelCard(BaseModel):
     size: int
     #: how the weights are stored: float32 (as trained) or float16 (`halve_shipped`)
     weights: str = "float32"
+    #: a segmenter's inference settings changed after training (`set_inference_shipped`)
+    inference: dict[str, Any] = {}
     evaluation_stage: str | None
     evaluation_hash: str | None
     figures: dict[str, float | int | str]
@@ -484,6 +486,39 @@ def halve_shipped(folder: Path) -> Path:
     return folder
 
 
+def set_inference_shipped(folder: Path, updates: dict[str, Any]) -> Path:
+    """A shipped segmenter's saved inference settings (`InferenceConfig`, e.g. `passes`)
+    changed; the weights stay. Its card records the change and gets the new file's sha256
+    and size, and loses the figures measured with the old settings: evaluate it and
+    re-card it (`recard_shipped`). InputError for another kind of model or a setting
+    `InferenceConfig` refuses. Returns `folder`."""
+    from artic.artifacts.model_file import load_torch_file, save_torch_file
+    from artic.hierarchy.config import InferenceConfig
+
+    card = read_card(folder)
+    model = folder / MODEL_FILE
+    _check_bytes(model, card)
+    payload = load_torch_file(model)
+    if card.kind != "segmenter" or "inference" not in payload.get("hparams", {}):
+        raise InputError(f"{model}: a {card.kind} model has no inference settings to change")
+    try:
+        settings = InferenceConfig(**{**payload["hparams"]["inference"], **updates})
+    except ValidationError as err:
+        first = err.errors()[0]
+        field = ".".join(str(p) for p in first["loc"])
+        raise InputError(f"{model}: inference.{field}: {first['msg']}") from None
+    payload["hparams"]["inference"] = settings.model_dump()
+    partial = folder / f".{MODEL_FILE}.partial"
+    save_torch_file(partial, payload)
+    new = card.model_copy(update={
+        "model_sha256": sha256_file(partial), "size": partial.stat().st_size,
+        "inference": {**card.inference, **updates},
+        "evaluation_stage": None, "evaluation_hash": None, "figures": {},
+    })  # fmt: skip
+    _replace_card(folder, new, None)
+    return folder
+
+
 def _shipped_section(card: ModelCard) -> str:
     lines = [
         "## Shipped with artic",
@@ -495,6 +530,9 @@ def _shipped_section(card: ModelCard) -> str:
     ]
     if card.weights != "float32":
         lines.append(f"- weights stored as {card.weights} (computed in float32 when loaded)")
+    if card.inference:
+        settings = ", ".join(f"{k}={v}" for k, v in card.inference.items())
+        lines.append(f"- inference settings changed after training: {settings}")
     if card.evaluation_stage:
         lines += [
             "",

@@ -58,9 +58,16 @@ class TrainSegmenterConfig(TrainingStageConfig):
     train: SegmenterTrainConfig
 
     @model_validator(mode="after")
-    def _mirror_needs_votes(self) -> TrainSegmenterConfig:
-        if self.inference.mirror_y and self.model.head != "votes":
-            raise ValueError("inference.mirror_y: only the votes head (model.head=votes) has it")
+    def _mirror_and_passes_need_votes(self) -> TrainSegmenterConfig:
+        if self.model.head != "votes":
+            for name, used in (
+                ("mirror_y", self.inference.mirror_y),
+                ("passes", self.inference.passes > 1),
+            ):
+                if used:
+                    raise ValueError(
+                        f"inference.{name}: only the votes head (model.head=votes) has it"
+                    )
         return self
 
 

@@ -108,6 +108,13 @@ class InferenceConfig(Strict):
         description="votes head: average the network's outputs on the cloud and on its mirror "
         "image (y -> -y), for a model trained with augment.mirror_y",
     )
+    passes: int = Field(
+        1,
+        ge=1,
+        description="votes head: the network runs on this many disjoint farthest-point samples "
+        "of n_points each (as many as the cloud has points for) and all their votes are "
+        "clustered together, so parts are cut at passes x n_points points",
+    )
 
     @field_validator("cluster_radius", mode="before")
     @classmethod
