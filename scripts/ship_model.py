@@ -77,6 +77,13 @@ def _settings(pairs: list[str], parser: argparse.ArgumentParser) -> dict[str, An
     return settings
 
 
+def _inference_settings(settings: dict[str, Any]) -> dict[str, Any]:
+    """A segmenter's inference settings, validated as a training saves them."""
+    from artic.hierarchy.config import InferenceConfig
+
+    return InferenceConfig(**settings).model_dump()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description="ship a trained model with its card")
     parser.add_argument(
@@ -116,7 +123,9 @@ def main() -> None:
         if args.half:
             target = halve_shipped(args.folder)
         elif args.inference:
-            target = set_inference_shipped(args.folder, _settings(args.inference, parser))
+            target = set_inference_shipped(
+                args.folder, _settings(args.inference, parser), _inference_settings
+            )
         elif shipped and args.evaluation is not None:
             target = recard_shipped(args.folder, args.evaluation)
         else:

@@ -252,36 +252,43 @@ def test_a_shipped_model_halved_predicts_as_its_rounded_weights(workspace, train
 def test_a_shipped_segmenters_inference_settings_change_and_its_weights_stay(
     tmp_path: Path,
 ) -> None:
-    """`set_inference_shipped`: the shipped storage-furniture segmenter with two passes:
+    """`set_inference_shipped`: the shipped storage-furniture segmenter with one pass more:
     the weights and other settings stay, the card records the change with the new
     bytes' hash and drops the figures measured before; a setting InferenceConfig refuses
     and a model of another kind are refused, leaving the files as they were."""
     import torch
 
     from artic.artifacts.model_store import shipped_input
+    from artic.hierarchy.config import InferenceConfig
     from artic.hierarchy.models import load_segmenter
 
     store = Path(__file__).resolve().parents[2] / "models"
     folder = tmp_path / "segmenter"
     shutil.copytree(store / "segmenter" / "storage_furniture", folder)
+
+    def validate(settings: dict[str, object]) -> dict[str, object]:
+        return InferenceConfig(**settings).model_dump()
+
     before, old = read_card(folder), load_segmenter(folder / "model.pt")
-    assert before.figures and old.inference.passes == 1
-    assert set_inference_shipped(folder, {"passes": 2}) == folder
+    passes = old.inference.passes + 1
+    assert before.figures
+    assert set_inference_shipped(folder, {"passes": passes}, validate) == folder
     card, new = read_card(folder), load_segmenter(folder / "model.pt")
-    assert new.inference == old.inference.model_copy(update={"passes": 2})
+    assert new.inference == old.inference.model_copy(update={"passes": passes})
     for name, value in old.model.state_dict().items():
         assert torch.equal(new.model.state_dict()[name], value), name
-    assert card.inference == {"passes": 2} and card.figures == {} and card.evaluation_hash is None
+    assert card.inference == before.inference | {"passes": passes}
+    assert card.figures == {} and card.evaluation_hash is None
     assert card.model_sha256 != before.model_sha256 and card.commit == before.commit
     assert shipped_input(folder, card.stage) is not None  # the card matches the new bytes
-    assert "changed after training: passes=2" in (folder / "model_card.md").read_text()
+    assert f"changed after training: passes={passes}" in (folder / "model_card.md").read_text()
     with pytest.raises(InputError, match=r"inference\.passes"):
-        set_inference_shipped(folder, {"passes": 0})
+        set_inference_shipped(folder, {"passes": 0}, validate)
     assert read_card(folder) == card and not list(folder.glob(".*"))
     labeller = tmp_path / "labeller"
     shutil.copytree(store / "hierarchy" / "storage_furniture", labeller)
     with pytest.raises(InputError, match="no inference settings"):
-        set_inference_shipped(labeller, {"passes": 2})
+        set_inference_shipped(labeller, {"passes": 2}, validate)
 
 
 def test_half_precision_refuses_what_float16_cannot_hold():

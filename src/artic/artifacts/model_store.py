@@ -19,6 +19,7 @@ choice says where the model came from, so commands can print it. `list_models` i
 from __future__ import annotations
 
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -486,14 +487,18 @@ def halve_shipped(folder: Path) -> Path:
     return folder
 
 
-def set_inference_shipped(folder: Path, updates: dict[str, Any]) -> Path:
-    """A shipped segmenter's saved inference settings (`InferenceConfig`, e.g. `passes`)
-    changed; the weights stay. Its card records the change and gets the new file's sha256
-    and size, and loses the figures measured with the old settings: evaluate it and
-    re-card it (`recard_shipped`). InputError for another kind of model or a setting
-    `InferenceConfig` refuses. Returns `folder`."""
+def set_inference_shipped(
+    folder: Path,
+    updates: dict[str, Any],
+    validate: Callable[[dict[str, Any]], dict[str, Any]],
+) -> Path:
+    """A shipped segmenter's saved inference settings changed by `updates` (e.g. `passes`;
+    `validate` checks the merged settings and returns them as saved: the segmenter's
+    `InferenceConfig`, which this floor does not import); the weights stay. Its card
+    records the change and gets the new file's sha256 and size, and loses the figures
+    measured with the old settings: evaluate it and re-card it (`recard_shipped`).
+    InputError for another kind of model or settings `validate` refuses. Returns `folder`."""
     from artic.artifacts.model_file import load_torch_file, save_torch_file
-    from artic.hierarchy.config import InferenceConfig
 
     card = read_card(folder)
     model = folder / MODEL_FILE
@@ -502,12 +507,12 @@ def set_inference_shipped(folder: Path, updates: dict[str, Any]) -> Path:
     if card.kind != "segmenter" or "inference" not in payload.get("hparams", {}):
         raise InputError(f"{model}: a {card.kind} model has no inference settings to change")
     try:
-        settings = InferenceConfig(**{**payload["hparams"]["inference"], **updates})
+        settings = validate({**payload["hparams"]["inference"], **updates})
     except ValidationError as err:
         first = err.errors()[0]
         field = ".".join(str(p) for p in first["loc"])
         raise InputError(f"{model}: inference.{field}: {first['msg']}") from None
-    payload["hparams"]["inference"] = settings.model_dump()
+    payload["hparams"]["inference"] = settings
     partial = folder / f".{MODEL_FILE}.partial"
     save_torch_file(partial, payload)
     new = card.model_copy(update={
