@@ -64,7 +64,7 @@ def seek_modes(
 ) -> NDArray[np.float64]:
     """Gaussian mean shift: every point of `points` (n, 3) moved `iterations` times to the
     kernel-weighted mean of `points` around it (bandwidth in the points' units). O(n^2)
-    per step; n is at most the network's input size."""
+    per step; n is at most the network's input size times `InferenceConfig.passes`."""
     x = np.asarray(points, dtype=np.float64)
     y = x.copy()
     xx = (x * x).sum(1)
