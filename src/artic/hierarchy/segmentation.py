@@ -26,7 +26,7 @@ the design of PointGroup and GAMMA), which trains to a useful segmenter on a CPU
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Literal, NamedTuple
+from typing import Literal, NamedTuple, cast
 
 import numpy as np
 import torch
@@ -374,9 +374,10 @@ def segment(
         raise ValueError("precomputed features need a cloud of at most n_points points")
     if len(samples) > 1 and model.config.head != "votes":
         raise InputError("inference.passes: only the votes head (model.head=votes) has it")
+    device = next(model.parameters()).device
+    index = None if neighbourhoods is None else neighbourhoods.to(device)
     outputs = [output] if output is not None else []
     for sample in samples[len(outputs) :]:
-        device = next(model.parameters()).device
         sample_normals: NDArray[np.float32] | None
         if model.config.normals and normals is None:
             from artic.hierarchy.normals import estimate_normals
@@ -387,12 +388,11 @@ def segment(
         normals_t = (
             None if sample_normals is None else torch.from_numpy(sample_normals).to(device)[None]
         )
-        index = None if neighbourhoods is None else neighbourhoods.to(device)
         outputs.append(forward(model, pts[sample], normals_t, index, config.mirror_y))
     out = outputs[0]
-    if len(outputs) > 1:
+    if len(outputs) > 1:  # the votes head's (checked above)
         frames = [normalization_frame(pts[sample], model.config.normalize) for sample in samples]
-        out = merge_passes([o for o in outputs if isinstance(o, VoteOutput)], frames)
+        out = merge_passes(cast(list[VoteOutput], outputs), frames)
     sample = np.concatenate(samples)
     min_size = len(samples) * max(
         config.min_points, int(np.ceil(config.min_fraction * len(samples[0])))
