@@ -10,7 +10,7 @@ were run with `evaluate.yaw=random`, whose noisy rows become scans `noisy_yaw`. 
 (other tools read them): category, data (withheld | independent), scans (clean | noisy |
 noisy_yaw), parts (ground_truth | predicted), map50 (the segmenter's mAP@0.5, on the
 predicted-parts rows; empty where it does not apply), tree_f1. Rows of an existing file
-for other categories are kept; this category's rows are replaced.
+for other categories are kept; this category's rows are replaced; rows by category.
 """
 
 from __future__ import annotations
@@ -57,6 +57,7 @@ def main() -> None:
             folder = getattr(args, data + ("_yaw" if turned else ""))
             if folder is not None:
                 rows += rows_of(folder, args.category, data, turned)
+    rows.sort(key=lambda r: r["category"])  # stable: each category's rows keep their order
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with args.out.open("w", newline="") as f:
         writer = csv.DictWriter(f, COLUMNS, lineterminator="\n")
