@@ -17,7 +17,12 @@ from artic.evaluation.segmentation import (
     object_detections,
 )
 from artic.hierarchy.cloud_cache import cloud_features
-from artic.hierarchy.fit_segmenter import static_part_of
+from artic.hierarchy.fit_segmenter import (
+    InferenceSearch,
+    ValidationScan,
+    choose_inference,
+    static_part_of,
+)
 from artic.hierarchy.models import load_segmenter, save_segmenter
 from artic.hierarchy.pointnet2 import farthest_point_indices
 from artic.hierarchy.segmentation import (
@@ -304,6 +309,43 @@ def test_passes_put_the_network_on_every_point_of_a_larger_cloud() -> None:
     masks = PartSegmentationNet(tiny_config()).eval()
     with pytest.raises(InputError, match="passes"):
         segment(masks, points, InferenceConfig(n_points=400, passes=2))
+
+
+def _slab_oracle() -> _SlabOracle:
+    config = dataclasses.replace(tiny_config(), head="votes", normals=False, normalize=False)
+    return _SlabOracle(
+        dataclasses.replace(config, backbone=dataclasses.replace(config.backbone, in_channels=0))
+    )
+
+
+def test_choose_inference_finds_the_passes_and_part_size_that_whole_scans_need() -> None:
+    """`choose_inference` scores settings on whole scans as `segment` labels them: a 5 cm
+    cube of 12 points beside two slabs (738 points) is a point or two of one 246-point
+    sample, under the saved minimum part size (3 a sample), but all 12 of three samples
+    (over 9): the search takes three passes (mAP 1, every point right), where the saved
+    settings miss the cube, and keeps the minimum, since 8 does no better. Candidates no
+    better than the current value keep it."""
+    rng = np.random.default_rng(3)
+    points, part = _slabs(1200)
+    keep = np.concatenate([np.flatnonzero(part == 0)[:363], np.flatnonzero(part == 1)[:363]])
+    cube = rng.uniform(0.0, 0.05, (12, 3)) + np.array([2.02, 0.0, 0.0])
+    points = np.concatenate([points[keep], cube]).astype(np.float32)
+    part = np.concatenate([part[keep], np.full(12, 2)]).astype(np.int64)
+    scans = [ValidationScan(points, part, noisy) for noisy in (False, True)]
+    saved = InferenceConfig(n_points=246, cluster_radius=0.2, min_points=3, min_fraction=0.0)
+    oracle = _slab_oracle()
+    assert len(np.unique(segment(oracle, points, saved).part_id)) == 2  # no cube
+    search = InferenceSearch(passes=(1, 3), min_points=(3, 8))
+    chosen, scores = choose_inference(oracle, scans, saved, search)
+    assert (chosen.passes, chosen.min_points) == (3, 3)
+    first, *_ = scores
+    assert first.startswith("passes=1;min_points=3;")
+    assert scores[first] < 0.9
+    assert max(scores.values()) == pytest.approx(1.0)
+    result = segment(oracle, points, chosen)
+    np.testing.assert_allclose(instance_iou(result.part_id, part).max(axis=0), 1.0)
+    same, tried = choose_inference(oracle, scans, chosen, InferenceSearch(passes=(3,)))
+    assert same == chosen and len(tried) == 1
 
 
 def test_merged_passes_are_in_the_first_passes_frame() -> None:

@@ -444,3 +444,116 @@ def load_clouds(
     if not clouds:
         raise InputError(f"scans: {ds.root} has no usable clouds of objects {objects[:5]}...")
     return SegmentationData.stack(clouds, ids, noisy), skipped
+
+
+class ValidationScan(NamedTuple):
+    """A whole scan as `artic evaluate hierarchy` scores it: its labelled points (N, 3)
+    float32 metres, their true parts (N,) 0..P-1 and whether it is a noisy scan."""
+
+    points: NDArray[np.float32]
+    part_id: NDArray[np.int64]
+    noisy: bool
+
+
+def validation_scans(
+    ds: ScanDataset, objects: Sequence[int], kinds: Sequence[str], max_poses: int | None
+) -> list[ValidationScan]:
+    """The training split's scans of `objects` (the `kinds`, poses below `max_poses`) at full
+    resolution, for `choose_inference`; InputError when there are none."""
+    rows = ds.select("train", tuple(kinds), list(objects))
+    scans = []
+    for row in rows:
+        if max_poses is not None and row.pose >= max_poses:
+            continue
+        cloud = ds.cloud(row)
+        assert cloud.part_id is not None
+        labelled = cloud.part_id >= 0
+        if not labelled.any():
+            continue
+        part = cloud.part_id[labelled]
+        part_id = np.searchsorted(np.unique(part), part).astype(np.int64)
+        points = np.asarray(cloud.points[labelled], dtype=np.float32)
+        scans.append(ValidationScan(points, part_id, row.kind == "noisy"))
+    if not scans:
+        raise InputError(f"scans: {ds.root} has no scans of objects {list(objects)[:5]}...")
+    return scans
+
+
+@dataclass(frozen=True)
+class InferenceSearch:
+    """Candidates `choose_inference` tries for each setting (empty: the setting is kept)."""
+
+    passes: tuple[int, ...] = ()
+    min_points: tuple[int, ...] = ()
+    cluster_radii: tuple[float, ...] = ()
+    mode_bandwidths: tuple[float, ...] = ()
+
+
+def choose_inference(
+    model: PartSegmentationNet,
+    scans: Sequence[ValidationScan],
+    inference: InferenceConfig,
+    search: InferenceSearch,
+) -> tuple[InferenceConfig, dict[str, float]]:
+    """Votes head: `inference` with the passes, minimum part size, per-motion-type radii and
+    mode-seeking bandwidth that score the best mean of clean and noisy mAP@0.5 on whole
+    `scans`, every point labelled as `segment` labels it (the figure `evaluate hierarchy`
+    reports; `choose_cluster_radius` scores the network's samples instead, where a part of
+    a few points still counts whole). A coordinate search from `inference`: passes, then
+    min_points, then each type's radius (not for a type that is one part), then the
+    bandwidth, each candidate with the others kept; ties keep the current value. The
+    network runs once per scan, on as many samples as the most passes tried. Returns the
+    chosen settings and every tried setting's score, keyed by its values."""
+    from artic.hierarchy.segmentation import network_passes, parts_of_passes
+    from artic.progress import progress
+
+    if model.config.head != "votes":
+        return inference, {}
+    most = max((*search.passes, inference.passes))
+    runs = []
+    with progress("choose inference: network", len(scans), "scans") as advance:
+        for scan in scans:
+            settings = inference.model_copy(update={"passes": most})
+            runs.append(network_passes(model, scan.points, settings))
+            advance(1)
+    scores: dict[str, float] = {}
+
+    def key(s: InferenceConfig) -> str:
+        radius = ",".join(f"{r:g}" for r in s.cluster_radius)
+        return f"passes={s.passes};min_points={s.min_points};radius={radius};h={s.mode_bandwidth:g}"
+
+    def score(s: InferenceConfig) -> float:
+        k = key(s)
+        if k not in scores:
+            detections: dict[bool, list[Any]] = {False: [], True: []}
+            for scan, (samples, outputs) in zip(scans, runs, strict=True):
+                n = len(samples[: s.passes])
+                result = parts_of_passes(model.config, scan.points, samples[:n], outputs[:n], s)
+                detections[scan.noisy].append(
+                    object_detections(result.part_id, result.part_confidence, scan.part_id)
+                )
+            maps = [mean_average_precision(d) for d in detections.values() if d]
+            scores[k] = float(np.mean(maps))
+        return scores[k]
+
+    one_part = (STATIC,) if model.config.static_part == "one" else ()
+    steps: list[tuple[str, Sequence[Any]]] = [
+        ("passes", search.passes),
+        ("min_points", search.min_points),
+        *((f"radius{t}", search.cluster_radii) for t in range(4) if t not in one_part),
+        ("mode_bandwidth", search.mode_bandwidths),
+    ]
+    best = inference
+    for name, candidates in steps:
+        log.info("choose inference: %s (best so far %s)", name, key(best))
+        tried = [best]
+        for value in candidates:
+            if name.startswith("radius"):
+                t = int(name[len("radius") :])
+                radius = (*best.cluster_radius[:t], value, *best.cluster_radius[t + 1 :])
+                tried.append(best.model_copy(update={"cluster_radius": radius}))
+            else:
+                tried.append(best.model_copy(update={name: value}))
+        best = max(tried, key=score)  # the first of equals: the current one
+    log.info("choose inference: %s (mAP %.4f)", key(best), score(best))
+    return best, scores

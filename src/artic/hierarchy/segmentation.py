@@ -25,6 +25,7 @@ the design of PointGroup and GAMMA), which trains to a useful segmenter on a CPU
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple, cast
 
@@ -368,9 +369,24 @@ def segment(
     if not np.isfinite(pts).all():
         raise InputError("points: NaN or infinite coordinates")
     pts = pts.astype(np.float32)
-    samples = sample_passes(pts, config.n_points, config.passes)
+    samples, outputs = network_passes(model, pts, config, normals, neighbourhoods, output)
+    return parts_of_passes(model.config, pts, samples, outputs, config)
+
+
+def network_passes(
+    model: PartSegmentationNet,
+    points: NDArray[np.float32],
+    config: InferenceConfig,
+    normals: NDArray[np.float32] | None = None,
+    neighbourhoods: BackboneIndex | None = None,
+    output: SegmentationOutput | VoteOutput | None = None,
+) -> tuple[list[NDArray[np.int64]], list[SegmentationOutput | VoteOutput]]:
+    """Steps 1-2 of `segment` on a checked cloud (N, 3) float32: its samples
+    (`sample_passes`) and the network's output on each. The first K of a run with
+    `passes` = P > K are those of a run with K (`choose_inference` relies on it)."""
+    samples = sample_passes(points, config.n_points, config.passes)
     precomputed = (normals, neighbourhoods, output)
-    if len(samples[0]) < len(pts) and any(x is not None for x in precomputed):
+    if len(samples[0]) < len(points) and any(x is not None for x in precomputed):
         raise ValueError("precomputed features need a cloud of at most n_points points")
     if len(samples) > 1 and model.config.head != "votes":
         raise InputError("inference.passes: only the votes head (model.head=votes) has it")
@@ -382,23 +398,36 @@ def segment(
         if model.config.normals and normals is None:
             from artic.hierarchy.normals import estimate_normals
 
-            sample_normals = estimate_normals(pts[sample])
+            sample_normals = estimate_normals(points[sample])
         else:
             sample_normals = normals
         normals_t = (
             None if sample_normals is None else torch.from_numpy(sample_normals).to(device)[None]
         )
-        outputs.append(forward(model, pts[sample], normals_t, index, config.mirror_y))
+        outputs.append(forward(model, points[sample], normals_t, index, config.mirror_y))
+    return samples, outputs
+
+
+def parts_of_passes(
+    network: SegmentationConfig,
+    points: NDArray[np.float32],
+    samples: Sequence[NDArray[np.int64]],
+    outputs: Sequence[SegmentationOutput | VoteOutput],
+    config: InferenceConfig,
+) -> SegmentationResult:
+    """Steps 3-4 of `segment`: the parts of every point of `points` from the network's
+    outputs on its `samples` (`network_passes`), with `config`'s clustering settings (its
+    `passes` is not read: every sample given is used)."""
     out = outputs[0]
-    if len(outputs) > 1:  # the votes head's (checked above)
-        frames = [normalization_frame(pts[sample], model.config.normalize) for sample in samples]
-        out = merge_passes(cast(list[VoteOutput], outputs), frames)
+    if len(outputs) > 1:  # the votes head's (`network_passes` checks)
+        frames = [normalization_frame(points[sample], network.normalize) for sample in samples]
+        out = merge_passes(cast(list[VoteOutput], list(outputs)), frames)
     sample = np.concatenate(samples)
     min_size = len(samples) * max(
         config.min_points, int(np.ceil(config.min_fraction * len(samples[0])))
     )
     if isinstance(out, VoteOutput):
-        one_part = (STATIC,) if model.config.static_part == "one" else ()
+        one_part = (STATIC,) if network.static_part == "one" else ()
         clusters, motion_prob = vote_parts(
             out, config.cluster_radius, min_size, one_part, config.mode_bandwidth
         )
@@ -408,7 +437,7 @@ def segment(
         motion_prob = out.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
         merged = merge_masks(mask_prob, out.confidence[0].cpu().numpy(), config)
         label, confidence = merged.label, out.confidence[0].cpu().numpy()[merged.mask]
-    nearest = nearest_sample(pts[sample], pts)
+    nearest = nearest_sample(points[sample], points)
     used, part_id = np.unique(label[nearest], return_inverse=True)  # drop emptied parts
     return SegmentationResult(
         part_id.astype(np.int64),
