@@ -169,6 +169,29 @@ def test_votes_head_trains_chooses_its_radius_and_segments(tiny: TinyScans, tmp_
     assert len(result.part_confidence) == result.part_id.max() + 1
 
 
+def test_votes_head_chooses_passes_and_part_size_on_whole_scans(
+    tiny: TinyScans, tmp_path: Path
+) -> None:
+    """`train.select_passes` / `select_min_points`: after the radius search on the prepared
+    clouds, `choose_inference` on the whole validation scans; every tried setting's score is
+    saved with the model, the saved settings are the best of them, and the card says so."""
+    out = tmp_path / "whole"
+    code, _, err = run_cli(
+        *ARGS, "model.head=votes", "train.cluster_radii=[0.05,0.2]", "train.select_passes=[1,2]",
+        "train.select_min_points=[2,8]", "train.select_poses=1", f"scans={tiny.scans}",
+        f"out={out}",
+    )  # fmt: skip
+    assert code == 0, err
+    loaded = load_segmenter(out / "model.pt", "storage_furniture")
+    scores = loaded.meta["whole_scan_val_map"]  # "passes=..;min_points=..;radius=..;h=..": mAP
+    s = loaded.inference
+    radius = ",".join(f"{r:g}" for r in s.cluster_radius)
+    chosen = f"passes={s.passes};min_points={s.min_points};radius={radius};h={s.mode_bandwidth:g}"
+    assert scores[chosen] == max(scores.values())
+    assert {k.split(";")[0] for k in scores} == {"passes=1", "passes=2"}
+    assert "on whole validation scans" in (out / "model_card.md").read_text()
+
+
 def test_votes_head_static_part_auto_and_mode_bandwidth_chosen(
     tiny: TinyScans, tmp_path: Path
 ) -> None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import Field, PositiveFloat, field_validator
+from pydantic import Field, NonNegativeInt, PositiveFloat, PositiveInt, field_validator
 
 from artic.config.schemas import Strict
 from artic.learning.trainer import TrainConfig
@@ -159,6 +159,16 @@ class SegmenterTrainConfig(TrainConfig):
         description="votes head: mean-shift bandwidths tried with the radii (a radius search "
         "for each), the best mAP's kept (empty: keep inference.mode_bandwidth)",
     )
+    select_passes: tuple[PositiveInt, ...] = Field(
+        (),
+        description="votes head: inference.passes tried on whole validation scans after the "
+        "radius search, with select_min_points, cluster_radii and mode_bandwidths "
+        "(`choose_inference`); both empty: no such search",
+    )
+    select_min_points: tuple[NonNegativeInt, ...] = Field(
+        (), description="votes head: inference.min_points tried in that search"
+    )
+    select_poses: PositiveInt = Field(4, description="poses of each validation object in it")
 
 
 # --- the graph labelling network (section 4.4) ------------------------------------------
