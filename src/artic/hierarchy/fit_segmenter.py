@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple, cast
 
 import numpy as np
 import torch
@@ -504,7 +504,12 @@ def choose_inference(
     bandwidth, each candidate with the others kept; ties keep the current value. The
     network runs once per scan, on as many samples as the most passes tried. Returns the
     chosen settings and every tried setting's score, keyed by its values."""
-    from artic.hierarchy.segmentation import network_passes, parts_of_passes
+    from artic.hierarchy.segmentation import (
+        network_passes,
+        normalization_frame,
+        parts_of_passes,
+    )
+    from artic.hierarchy.votes import merge_passes
     from artic.progress import progress
 
     if model.config.head != "votes":
@@ -522,13 +527,33 @@ def choose_inference(
         radius = ",".join(f"{r:g}" for r in s.cluster_radius)
         return f"passes={s.passes};min_points={s.min_points};radius={radius};h={s.mode_bandwidth:g}"
 
+    one_part = (STATIC,) if model.config.static_part == "one" else ()
+    moved: dict[tuple[int, float], list[VoteOutput]] = {}
+
+    def votes(passes: int, bandwidth: float) -> list[VoteOutput]:
+        """Every scan's first `passes` outputs merged and moved to their modes, once for all
+        the settings that share them (`votes.sought`)."""
+        if (passes, bandwidth) not in moved:
+            merged = []
+            for scan, (samples, outputs) in zip(scans, runs, strict=True):
+                n = len(samples[:passes])
+                frames = [normalization_frame(scan.points[i], model.config.normalize)
+                          for i in samples[:n]]  # fmt: skip
+                out = merge_passes(cast(list[VoteOutput], outputs[:n]), frames)
+                merged.append(sought(out, bandwidth, one_part))
+            moved.clear()  # one (passes, bandwidth) at a time: the search changes one setting
+            moved[(passes, bandwidth)] = merged
+        return moved[(passes, bandwidth)]
+
     def score(s: InferenceConfig) -> float:
         k = key(s)
         if k not in scores:
             detections: dict[bool, list[Any]] = {False: [], True: []}
-            for scan, (samples, outputs) in zip(scans, runs, strict=True):
+            flat = s.model_copy(update={"mode_bandwidth": 0.0})
+            shifted = votes(s.passes, s.mode_bandwidth)
+            for scan, (samples, _), out in zip(scans, runs, shifted, strict=True):
                 n = len(samples[: s.passes])
-                result = parts_of_passes(model.config, scan.points, samples[:n], outputs[:n], s)
+                result = parts_of_passes(model.config, scan.points, samples[:n], [out], flat)
                 detections[scan.noisy].append(
                     object_detections(result.part_id, result.part_confidence, scan.part_id)
                 )
@@ -536,7 +561,6 @@ def choose_inference(
             scores[k] = float(np.mean(maps))
         return scores[k]
 
-    one_part = (STATIC,) if model.config.static_part == "one" else ()
     steps: list[tuple[str, Sequence[Any]]] = [
         ("passes", search.passes),
         ("min_points", search.min_points),

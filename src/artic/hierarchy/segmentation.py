@@ -417,7 +417,8 @@ def parts_of_passes(
 ) -> SegmentationResult:
     """Steps 3-4 of `segment`: the parts of every point of `points` from the network's
     outputs on its `samples` (`network_passes`), with `config`'s clustering settings (its
-    `passes` is not read: every sample given is used)."""
+    `passes` is not read: every sample given is used). outputs: one per sample, or one
+    for all of them, already merged (`votes.merge_passes`)."""
     out = outputs[0]
     if len(outputs) > 1:  # the votes head's (`network_passes` checks)
         frames = [normalization_frame(points[sample], network.normalize) for sample in samples]
