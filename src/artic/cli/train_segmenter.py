@@ -105,14 +105,12 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
 
     from artic.artifacts.resume import torch_checkpoint
     from artic.hierarchy.fit_segmenter import (
-        InferenceSearch,
         choose_cluster_radius,
-        choose_inference,
         fit_segmenter,
         score_segmenter,
+        select_on_whole_scans,
         static_part_of,
         training_objects,
-        validation_scans,
     )
     from artic.hierarchy.models import save_segmenter
     from artic.hierarchy.segmentation import PartSegmentationNet
@@ -151,13 +149,8 @@ def train_chunk(cfg: TrainSegmenterConfig, inputs: dict[str, Path], chunk: int, 
     inference, radius_scores = choose_cluster_radius(
         model, val, cfg.inference, t.cluster_radii, t.mode_bandwidths
     )
-    whole_scores: dict[str, float] = {}
-    if model.config.head == "votes" and (t.select_passes or t.select_min_points):
-        search = InferenceSearch(
-            t.select_passes, t.select_min_points, t.cluster_radii, t.mode_bandwidths
-        )
-        scans = validation_scans(ds, split.val, cfg.data.kinds, t.select_poses)
-        inference, whole_scores = choose_inference(model, scans, inference, search)
+    kinds = cfg.data.kinds
+    inference, whole_scores = select_on_whole_scans(model, ds, split.val, kinds, t, inference)
     scores = score_segmenter(model, val, inference)
     meta: dict[str, Any] = {
         "data": {"path": str(inputs["scans"]), "content_hash": ds.manifest.content_hash},
@@ -214,17 +207,10 @@ def _finalize(
              f"{head}, motion-type branch; width x{m.width}, {m.norm} norm, "
              f"{'normals, ' if m.normals else ''}"
              f"input {cfg.inference.n_points} points (FPS).")  # fmt: skip
-    whole = info.get("whole_scan_val_map")
-    chosen = info["inference"]
-    whole_line = (
-        []
-        if not whole
-        else [
-            f"- on whole validation scans ({len(whole)} settings tried): passes "
-            f"{chosen['passes']}, min_points {chosen['min_points']}, mAP@0.5 (mean of clean "
-            f"and noisy) {max(whole.values()):.3f}"
-        ]
-    )
+    whole, chosen = info.get("whole_scan_val_map"), info["inference"]
+    whole_line = [f"- on whole validation scans ({len(whole)} settings tried): passes "
+                  f"{chosen['passes']}, min_points {chosen['min_points']}, mAP@0.5 (mean of "
+                  f"clean and noisy) {max(whole.values()):.3f}"] if whole else []  # fmt: skip
     write_model_card(work, f"Part segmenter for {cfg.category.name}", about, info, [
         f"- clouds: {info['train_clouds']} train, {info['val_clouds']} validation, "
         f"{info['skipped_clouds']} skipped (more parts than masks)",

@@ -581,3 +581,25 @@ def choose_inference(
         best = max(tried, key=score)  # the first of equals: the current one
     log.info("choose inference: %s (mAP %.4f)", key(best), score(best))
     return best, scores
+
+
+def select_on_whole_scans(
+    model: PartSegmentationNet,
+    ds: ScanDataset,
+    objects: Sequence[int],
+    kinds: Sequence[str],
+    train: SegmenterTrainConfig,
+    inference: InferenceConfig,
+) -> tuple[InferenceConfig, dict[str, float]]:
+    """train-segmenter's `choose_inference` on the whole scans (`kinds`, `train.select_poses`
+    poses) of its validation `objects`, with the candidates of `train.select_passes`,
+    `select_min_points`, `cluster_radii` and `mode_bandwidths`; `inference` unchanged and
+    no scores when both select lists are empty or the head is the masks head."""
+    t = train
+    if model.config.head != "votes" or not (t.select_passes or t.select_min_points):
+        return inference, {}
+    search = InferenceSearch(
+        t.select_passes, t.select_min_points, t.cluster_radii, t.mode_bandwidths
+    )
+    scans = validation_scans(ds, objects, kinds, t.select_poses)
+    return choose_inference(model, scans, inference, search)
