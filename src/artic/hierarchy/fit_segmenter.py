@@ -2,7 +2,9 @@
 the Hungarian-matched instance loss + motion-type loss (masks head) or on the offset and
 motion-type losses (votes head, `artic.hierarchy.votes`), validation on withheld training
 objects after every epoch, early stopping on the validation loss. The votes head's
-clustering radius is then chosen on the validation clouds (`choose_cluster_radius`).
+clustering radius is then chosen on the validation clouds (`choose_cluster_radius`) and,
+with `train.select_*`, passes and minimum part size on whole validation scans
+(`choose_inference`).
 
 Clouds are prepared as `segment` sees them at inference: downsampled to `n_points` by
 farthest-point sampling from point 0 (`prepare_cloud`). Optional augmentation: a random
