@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, NamedTuple, cast
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 import torch
@@ -506,12 +506,7 @@ def choose_inference(
     bandwidth, each candidate with the others kept; ties keep the current value. The
     network runs once per scan, on as many samples as the most passes tried. Returns the
     chosen settings and every tried setting's score, keyed by its values."""
-    from artic.hierarchy.segmentation import (
-        network_passes,
-        normalization_frame,
-        parts_of_passes,
-    )
-    from artic.hierarchy.votes import merge_passes
+    from artic.hierarchy.segmentation import merged_passes, network_passes, parts_of_passes
     from artic.progress import progress
 
     if model.config.head != "votes":
@@ -539,9 +534,7 @@ def choose_inference(
             merged = []
             for scan, (samples, outputs) in zip(scans, runs, strict=True):
                 n = len(samples[:passes])
-                frames = [normalization_frame(scan.points[i], model.config.normalize)
-                          for i in samples[:n]]  # fmt: skip
-                out = merge_passes(cast(list[VoteOutput], outputs[:n]), frames)
+                out = merged_passes(model.config, scan.points, samples[:n], outputs[:n])
                 merged.append(sought(out, bandwidth, one_part))
             moved.clear()  # one (passes, bandwidth) at a time: the search changes one setting
             moved[(passes, bandwidth)] = merged
@@ -597,11 +590,10 @@ def select_on_whole_scans(
     poses) of its validation `objects`, with the candidates of `train.select_passes`,
     `select_min_points`, `cluster_radii` and `mode_bandwidths`; `inference` unchanged and
     no scores when both select lists are empty or the head is the masks head."""
-    t = train
-    if model.config.head != "votes" or not (t.select_passes or t.select_min_points):
+    if model.config.head != "votes" or not (train.select_passes or train.select_min_points):
         return inference, {}
     search = InferenceSearch(
-        t.select_passes, t.select_min_points, t.cluster_radii, t.mode_bandwidths
+        train.select_passes, train.select_min_points, train.cluster_radii, train.mode_bandwidths
     )
-    scans = validation_scans(ds, objects, kinds, t.select_poses)
+    scans = validation_scans(ds, objects, kinds, train.select_poses)
     return choose_inference(model, scans, inference, search)

@@ -419,10 +419,7 @@ def parts_of_passes(
     outputs on its `samples` (`network_passes`), with `config`'s clustering settings (its
     `passes` is not read: every sample given is used). outputs: one per sample, or one
     for all of them, already merged (`votes.merge_passes`)."""
-    out = outputs[0]
-    if len(outputs) > 1:  # the votes head's (`network_passes` checks)
-        frames = [normalization_frame(points[sample], network.normalize) for sample in samples]
-        out = merge_passes(cast(list[VoteOutput], list(outputs)), frames)
+    out = outputs[0] if len(outputs) == 1 else merged_passes(network, points, samples, outputs)
     sample = np.concatenate(samples)
     min_size = len(samples) * max(
         config.min_points, int(np.ceil(config.min_fraction * len(samples[0])))
@@ -446,6 +443,18 @@ def parts_of_passes(
         motion_prob[nearest],
         confidence[used].astype(np.float32),
     )
+
+
+def merged_passes(
+    network: SegmentationConfig,
+    points: NDArray[np.float32],
+    samples: Sequence[NDArray[np.int64]],
+    outputs: Sequence[SegmentationOutput | VoteOutput],
+) -> VoteOutput:
+    """The votes head's outputs on `samples` of `points` as one, in the first sample's
+    frame (`votes.merge_passes`); `network_passes` refuses passes to the masks head."""
+    frames = [normalization_frame(points[sample], network.normalize) for sample in samples]
+    return merge_passes(cast(list[VoteOutput], list(outputs)), frames)
 
 
 def sample_passes(
