@@ -42,6 +42,7 @@ from artic.hierarchy.votes import (
     cluster_votes,
     merge_passes,
     part_offsets,
+    part_weights,
     seek_modes,
     sought,
     vote_loss,
@@ -170,6 +171,35 @@ def test_votes_net_overfits_one_cloud_of_three_boxes_and_round_trips(tmp_path) -
         np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="n_points"):
         segment(model, points, InferenceConfig(n_points=100), features.normals)
+
+
+def test_per_part_offset_loss_weighs_a_small_part_as_much_as_a_large_one() -> None:
+    """`model.offset_weight=parts`: in two clouds, a 90-point part with exact offsets and a
+    10-point part (the other cloud's parts of 50 and 50) with every offset 0.1 off in x:
+    over points the small part's error is 10% of the first cloud's loss, over parts it is
+    one of the batch's four parts; static points left out (`vote_static`) do not count."""
+    ids = torch.tensor([[0] * 90 + [1] * 10, [0] * 50 + [1] * 50])
+    xyz = torch.randn(2, 100, 3, generator=torch.Generator().manual_seed(0))
+    offsets, labelled = part_offsets(xyz, ids)
+    weights = part_weights(ids, labelled)
+    assert float(weights.sum()) == pytest.approx(1.0)
+    for b, p in ((0, 0), (0, 1), (1, 0), (1, 1)):
+        assert float(weights[(ids[labelled] == p) & (torch.arange(200) // 100 == b)].sum()) == (
+            pytest.approx(0.25)
+        )
+    wrong = offsets.clone()
+    wrong[0, 90:, 0] += 0.1
+    types = torch.ones_like(ids)
+    logits = torch.nn.functional.one_hot(types, 4).float() * 100.0
+    output = VoteOutput(logits, wrong, xyz)
+    by_point = vote_loss(output, ids, types)
+    by_part = vote_loss(output, ids, types, per_part=True)
+    assert float(by_point.offset) == pytest.approx(0.1 * 10 / 200, abs=1e-6)
+    assert float(by_part.offset) == pytest.approx(0.1 / 4, abs=1e-6)
+    assert float(by_part.offset_error) == pytest.approx(float(by_point.offset_error))
+    types[1, :50] = 0  # the second cloud's first part static, its offsets not learnt
+    by_part = vote_loss(output, ids, types, vote_static=False, per_part=True)
+    assert float(by_part.offset) == pytest.approx(0.1 / 3, abs=1e-6)
 
 
 def test_static_one_part_ignores_the_static_offsets() -> None:
@@ -373,3 +403,11 @@ def test_merged_passes_are_in_the_first_passes_frame() -> None:
     shifted = (merged.xyz[0] + merged.offsets[0]).numpy()
     np.testing.assert_allclose(shifted, (metres - centre) / radius, atol=1e-5)
     assert merged.motion_logits.shape == (1, 900, 4)
+
+
+def test_offset_weight_reaches_the_network_config() -> None:
+    from artic.hierarchy.config import SegmenterModelConfig
+
+    assert SegmenterModelConfig(head="votes").network().offset_weight == "points"
+    parts = SegmenterModelConfig(head="votes", offset_weight="parts").network()
+    assert parts.offset_weight == "parts"

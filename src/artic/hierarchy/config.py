@@ -50,6 +50,11 @@ class SegmenterModelConfig(Strict):
         "static points are one rigid body, e.g. storage furniture) and drops their offset "
         "loss; 'auto': 'one' when every training cloud has at most one static part",
     )
+    offset_weight: Literal["points", "parts"] = Field(
+        "points",
+        description="votes head: the offset loss's mean over labelled points (PointGroup) "
+        "or over the parts of each cloud, every part weighing the same",
+    )
 
     def network(self, static_part: Literal["votes", "one"] | None = None) -> SegmentationConfig:
         """The architecture these settings describe; `static_part` resolves "auto" (which
@@ -81,6 +86,7 @@ class SegmenterModelConfig(Strict):
             head=self.head,
             normals=self.normals,
             static_part=static_part,
+            offset_weight=self.offset_weight,
         )
 
 

@@ -60,6 +60,7 @@ N_MASKS = 24
 MIRROR_Y = (1.0, -1.0, 1.0)
 Head = Literal["masks", "votes"]
 StaticPart = Literal["votes", "one"]
+OffsetWeight = Literal["points", "parts"]
 
 
 @dataclass(frozen=True)
@@ -74,6 +75,9 @@ class SegmentationConfig:
     head: Head = "masks"  # masks: section 4.3's N masks + confidences; votes: offsets
     normals: bool = False  # per-point normals as input features (backbone.in_channels 3)
     static_part: StaticPart = "votes"  # votes head: "one": every static point is one part
+    # votes head's offset loss: every labelled point weighs the same ("points", PointGroup)
+    # or every part of a cloud does ("parts": a part's points share its weight)
+    offset_weight: OffsetWeight = "points"
 
     def scaled(self, factor: float) -> SegmentationConfig:
         """Every width times `factor` (for tests and small machines)."""
@@ -269,12 +273,14 @@ def head_loss(
     motion_type: Tensor,
     weights: LossWeights | None = None,
     vote_static: bool = True,
+    per_part: bool = False,
 ) -> StepLosses:
     """`segmentation_loss` (masks head; `weights`) or `votes.vote_loss` (votes head;
-    `vote_static` False: no offset loss on static points, `static_part` "one")."""
+    `vote_static` False: no offset loss on static points, `static_part` "one"; `per_part`:
+    every part weighs the same in the offset loss, `offset_weight` "parts")."""
     losses: SegmentationLosses | VoteLosses
     if isinstance(output, VoteOutput):
-        losses = vote_loss(output, part_id, motion_type, vote_static)
+        losses = vote_loss(output, part_id, motion_type, vote_static, per_part)
     else:
         losses = segmentation_loss(output, part_id, motion_type, weights)
     terms = {k: float(v.detach()) for k, v in losses._asdict().items()}
@@ -298,9 +304,11 @@ def run_batch(
     index = None if batch.neighbourhoods is None else batch.neighbourhoods.to(device)
     output = model(batch.points.to(device), normals, index)
     vote_static = model.config.static_part == "votes"
+    per_part = model.config.offset_weight == "parts"
     return head_loss(
-        output, batch.part_id.to(device), batch.motion_type.to(device), weights, vote_static
-    )
+        output, batch.part_id.to(device), batch.motion_type.to(device), weights, vote_static,
+        per_part,
+    )  # fmt: skip
 
 
 def train_step(

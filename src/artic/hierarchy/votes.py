@@ -11,7 +11,11 @@ IoU of about 0.5.
   same cloud plus one minus the cosine between the two (PointGroup's regression and
   direction losses). Coordinates are those the network sees (`normalize_points`: unit
   sphere), so offsets are in cloud radii. With `model.static_part=one` the static points
-  get no offset loss: they are one part at inference (below).
+  get no offset loss: they are one part at inference (below). With
+  `model.offset_weight=parts` the offset and direction losses are means over the batch's
+  (cloud, part) pairs of each part's mean, not over points: a part of 8 points (an office
+  chair's caster) weighs as much as one of 400 (its seat), where a mean over points
+  leaves it 2% of the seat's say.
 - Inference (`cluster_votes`): points of one predicted motion type are shifted by their
   offsets and grouped by flood fill over pairs closer than that type's `cluster_radius`
   (the connected components of the radius graph, DBSCAN with min_samples 1; a radius per
@@ -108,6 +112,15 @@ class VoteLosses(NamedTuple):
     offset_error: Tensor  # mean Euclidean offset error, cloud radii (no gradient)
 
 
+def _part_groups(part_id: Tensor, labelled: Tensor) -> tuple[Tensor, Tensor]:
+    """Each labelled point's part among the batch's (cloud, part) pairs (0..G-1, in the
+    labelled points' order) and each pair's point count (G,)."""
+    b = part_id.shape[0]
+    key = part_id + torch.arange(b, device=part_id.device)[:, None] * (int(part_id.max()) + 1)
+    _, inverse = torch.unique(key[labelled], return_inverse=True)
+    return inverse, torch.bincount(inverse)
+
+
 def part_offsets(xyz: Tensor, part_id: Tensor) -> tuple[Tensor, Tensor]:
     """Offset from every point to the mean of its part's points in its own cloud.
 
@@ -116,23 +129,35 @@ def part_offsets(xyz: Tensor, part_id: Tensor) -> tuple[Tensor, Tensor]:
     """
     b, n = part_id.shape
     labelled = part_id >= 0
-    key = part_id + torch.arange(b, device=part_id.device)[:, None] * (int(part_id.max()) + 1)
-    groups, inverse = torch.unique(key[labelled], return_inverse=True)
+    inverse, counts = _part_groups(part_id, labelled)
     points = xyz[labelled]
-    sums = points.new_zeros(len(groups), 3).index_add_(0, inverse, points)
-    counts = torch.bincount(inverse, minlength=len(groups)).to(points.dtype)
+    sums = points.new_zeros(len(counts), 3).index_add_(0, inverse, points)
     offsets = xyz.new_zeros(b, n, 3)
-    offsets[labelled] = sums[inverse] / counts[inverse, None] - points
+    offsets[labelled] = sums[inverse] / counts.to(points.dtype)[inverse, None] - points
     return offsets, labelled
 
 
+def part_weights(part_id: Tensor, labelled: Tensor) -> Tensor:
+    """Per point of `labelled` (in its order), the weight under which every (cloud, part)
+    pair among them weighs the same: 1 / (its points x the pairs); the weights sum to 1."""
+    inverse, counts = _part_groups(torch.where(labelled, part_id, -1), labelled)
+    return 1.0 / (counts[inverse].double() * len(counts))
+
+
 def vote_loss(
-    output: VoteOutput, part_id: Tensor, motion_type: Tensor, vote_static: bool = True
+    output: VoteOutput,
+    part_id: Tensor,
+    motion_type: Tensor,
+    vote_static: bool = True,
+    per_part: bool = False,
 ) -> VoteLosses:
     """PointGroup's losses, mean over the batch's labelled points (module doc).
 
     part_id: (B, N) int64, -1 for points of no part; motion_type: (B, N) int64, -1 to ignore.
     vote_static False: points whose true motion type is static (0) get no offset loss.
+    per_part: the offset and direction losses weigh every (cloud, part) pair the same
+    (`part_weights`) instead of every point (`model.offset_weight=parts`); the reported
+    offset error stays the mean over points.
     """
     zero = output.offsets.new_zeros(())
     motion = (
@@ -149,9 +174,14 @@ def vote_loss(
         labelled = labelled & (motion_type != STATIC)
     if labelled.any():
         predicted, true = output.offsets[labelled], target[labelled]
-        offset = (predicted - true).abs().sum(-1).mean()
+        weight = part_weights(part_id, labelled).to(predicted.dtype) if per_part else None
+
+        def mean(values: Tensor) -> Tensor:
+            return values.mean() if weight is None else (values * weight).sum()
+
+        offset = mean((predicted - true).abs().sum(-1))
         cosine = F.cosine_similarity(predicted, true, dim=-1, eps=1e-8)
-        direction = (1.0 - cosine).mean()
+        direction = mean(1.0 - cosine)
         error = (predicted - true).detach().norm(dim=-1).mean()
     else:
         offset, direction, error = zero, zero, zero
