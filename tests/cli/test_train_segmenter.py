@@ -197,15 +197,19 @@ def test_votes_head_static_part_auto_and_mode_bandwidth_chosen(
 ) -> None:
     """`model.static_part=auto` on storage furniture (one static part per cloud) trains a
     "one" model; the bandwidth is chosen with the radii, every setting scored once, the
-    chosen one the best, and the model card says so."""
+    chosen one the best, and the model card says so; `model.offset_weight=parts` is saved
+    with the network and named in the card."""
     out = tmp_path / "votes"
     code, _, err = run_cli(
         *ARGS, "model.head=votes", "model.static_part=auto", "train.cluster_radii=[0.05,0.2]",
-        "train.mode_bandwidths=[0,0.05]", f"scans={tiny.scans}", f"out={out}",
+        "train.mode_bandwidths=[0,0.05]", "model.offset_weight=parts", f"scans={tiny.scans}",
+        f"out={out}",
     )  # fmt: skip
     assert code == 0, err
     loaded = load_segmenter(out / "model.pt", "storage_furniture")
     assert loaded.model.config.static_part == "one"
+    assert loaded.model.config.offset_weight == "parts"
+    assert "offsets learnt part by part" in (out / "model_card.md").read_text()
     scores = loaded.meta["cluster_radius_val_map"]  # "r_static,...;h=bandwidth": mAP
     assert {k.split(";")[1] for k in scores} == {"h=0", "h=0.05"}
     # the static radius is not searched when static points are one part

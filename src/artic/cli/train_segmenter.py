@@ -194,17 +194,11 @@ def _finalize(
     def fmt(value: float | None) -> str:
         return "n/a" if value is None else f"{value:.3f}"
 
+    from artic.hierarchy.fit_segmenter import head_description
+
     m = cfg.model
-    head = (
-        f"{m.n_masks} masks + confidence (the thesis' head)"
-        if m.head == "masks"
-        else "per-point offsets to the part centre, parts by clustering (votes head, "
-        f"radii {info['inference']['cluster_radius']} per motion type, chosen on validation "
-        "clouds)"
-        + (", every static point one part" if info["network"].get("static_part") == "one" else "")
-    )
     about = ("PointNet++ instance segmenter of thesis section 4.3 (after PartNet): "
-             f"{head}, motion-type branch; width x{m.width}, {m.norm} norm, "
+             f"{head_description(m, info)}, motion-type branch; width x{m.width}, {m.norm} norm, "
              f"{'normals, ' if m.normals else ''}"
              f"input {cfg.inference.n_points} points (FPS).")  # fmt: skip
     whole, chosen = info.get("whole_scan_val_map"), info["inference"]

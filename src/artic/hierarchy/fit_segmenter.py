@@ -36,7 +36,12 @@ from artic.evaluation.segmentation import (
     motion_type_accuracy,
     object_detections,
 )
-from artic.hierarchy.config import AugmentConfig, CloudDataConfig, SegmenterTrainConfig
+from artic.hierarchy.config import (
+    AugmentConfig,
+    CloudDataConfig,
+    SegmenterModelConfig,
+    SegmenterTrainConfig,
+)
 from artic.hierarchy.pointnet2 import BackboneIndex, farthest_point_indices, stack_indices
 from artic.hierarchy.segmentation import (
     QUALITY,
@@ -576,6 +581,19 @@ def choose_inference(
         best = max(tried, key=score)  # the first of equals: the current one
     log.info("choose inference: %s (mAP %.4f)", key(best), score(best))
     return best, scores
+
+
+def head_description(model: SegmenterModelConfig, info: dict[str, Any]) -> str:
+    """The model card's words for a trained segmenter's head (`info`: its model.json)."""
+    if model.head == "masks":
+        return f"{model.n_masks} masks + confidence (the thesis' head)"
+    network = info["network"]
+    return (
+        "per-point offsets to the part centre, parts by clustering (votes head, radii "
+        f"{info['inference']['cluster_radius']} per motion type, chosen on validation clouds)"
+        + (", every static point one part" if network.get("static_part") == "one" else "")
+        + (", offsets learnt part by part" if network.get("offset_weight") == "parts" else "")
+    )
 
 
 def select_on_whole_scans(
