@@ -374,7 +374,7 @@ def choose_cluster_radius(
     from artic.progress import progress
 
     outputs = network_outputs(model, data, inference.mirror_y)
-    one_part = (STATIC,) if model.config.static_part == "one" else ()
+    one_part = model.config.one_part
     types = [t for t in range(4) if t not in one_part]
     scores: dict[str, float] = {}
     moved: list[SegmentationOutput | VoteOutput] = []
@@ -529,7 +529,7 @@ def choose_inference(
         radius = ",".join(f"{r:g}" for r in s.cluster_radius)
         return f"passes={s.passes};min_points={s.min_points};radius={radius};h={s.mode_bandwidth:g}"
 
-    one_part = (STATIC,) if model.config.static_part == "one" else ()
+    one_part = model.config.one_part
     moved: dict[tuple[int, float], list[VoteOutput]] = {}
 
     def votes(passes: int, bandwidth: float) -> list[VoteOutput]:

@@ -79,6 +79,12 @@ class SegmentationConfig:
     # or every part of a cloud does ("parts": a part's points share its weight)
     offset_weight: OffsetWeight = "points"
 
+    @property
+    def one_part(self) -> tuple[int, ...]:
+        """The motion types whose points are all one part at inference (votes head):
+        the static type with `static_part` "one", else none."""
+        return (STATIC,) if self.static_part == "one" else ()
+
     def scaled(self, factor: float) -> SegmentationConfig:
         """Every width times `factor` (for tests and small machines)."""
         return replace(
@@ -433,9 +439,8 @@ def parts_of_passes(
         config.min_points, int(np.ceil(config.min_fraction * len(samples[0])))
     )
     if isinstance(out, VoteOutput):
-        one_part = (STATIC,) if network.static_part == "one" else ()
         clusters, motion_prob = vote_parts(
-            out, config.cluster_radius, min_size, one_part, config.mode_bandwidth
+            out, config.cluster_radius, min_size, network.one_part, config.mode_bandwidth
         )
         label, confidence = clusters.label, clusters.confidence
     else:
