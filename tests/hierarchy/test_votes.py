@@ -7,6 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 import torch
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 from test_segmentation import _batch, three_boxes, tiny_config
 
 from artic.errors import InputError
@@ -38,11 +41,15 @@ from artic.hierarchy.segmentation import (
     train_step,
 )
 from artic.hierarchy.votes import (
+    MODE_ITERATIONS,
+    MODE_ROWS,
+    MODE_SETTLED,
     VoteOutput,
     cluster_votes,
     merge_passes,
     part_offsets,
     part_weights,
+    radius_components,
     seek_modes,
     sought,
     vote_loss,
@@ -262,6 +269,52 @@ def test_mode_seeking_separates_touching_scatters_that_the_flood_fill_chains() -
     again = cluster_votes((sought(output, 0.05).offsets[0]).numpy(), prob, radius=0.05, min_size=5)
     np.testing.assert_array_equal(again.label, parts.label)
     assert sought(output, 0.0) is output
+
+
+def test_mode_seeking_is_each_points_own_mean_shift_climb() -> None:
+    """`seek_modes` forms its kernel MODE_ROWS rows at a time and stops each point once its
+    step is under MODE_SETTLED bandwidths: over several blocks (and a short last one) it
+    is, point by point, Gaussian mean shift with the whole cloud as the kernel's support,
+    here written out with explicit differences, one point at a time."""
+    rng = np.random.default_rng(7)
+    points = rng.normal(0.0, 0.2, (2 * MODE_ROWS + 37, 3))
+    points[:40] = rng.normal(0.0, 0.01, (40, 3)) + 0.5  # a tight cluster: settles early
+    bandwidth = 0.08
+    expected, steps = points.copy(), []
+    for i in range(len(points)):
+        taken = 0
+        while taken < MODE_ITERATIONS:
+            w = np.exp(-0.5 * ((expected[i] - points) ** 2).sum(-1) / bandwidth**2)
+            moved = (w @ points) / w.sum()
+            taken += 1
+            settled = np.linalg.norm(moved - expected[i]) < MODE_SETTLED * bandwidth
+            expected[i] = moved
+            if settled:
+                break
+        steps.append(taken)
+    np.testing.assert_allclose(seek_modes(points, bandwidth), expected, rtol=0, atol=1e-12)
+    assert np.abs(expected - points).max() > 0.05  # the points did move
+    assert min(steps) < MODE_ITERATIONS == max(steps)  # some stopped early, some did not
+
+
+@pytest.mark.parametrize("radius", [0.005, 0.02, 0.05, 0.2])
+def test_radius_components_are_the_radius_graphs_components_label_for_label(
+    radius: float,
+) -> None:
+    """Votes on their modes (tight clumps, exact duplicates) and scattered strays: the
+    components, and their numbering, are scipy's on the whole radius graph."""
+    rng = np.random.default_rng(int(radius * 1000))
+    modes = rng.uniform(-1.0, 1.0, (12, 3))
+    clumps = modes[rng.integers(0, 12, 900)] + rng.normal(0.0, 1e-7, (900, 3))
+    strays = rng.uniform(-1.0, 1.0, (300, 3))
+    points = rng.permutation(np.concatenate([clumps, strays, clumps[:50]]))
+    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points),) * 2)
+    count, expected = connected_components(graph, directed=False)
+    labels = radius_components(points, radius)
+    np.testing.assert_array_equal(labels, expected)
+    assert 12 <= count < len(points)
+    assert radius_components(points[:1], radius).tolist() == [0]
 
 
 def test_mirror_averaging_makes_the_outputs_mirror_equivariant() -> None:

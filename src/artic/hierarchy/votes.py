@@ -28,7 +28,8 @@ IoU of about 0.5.
   shifted position (a compact vote is a confident one).
 - Mode seeking (`inference.mode_bandwidth` h > 0, chosen on validation clouds with the
   radii): before the flood fill, the shifted points of each motion type climb to the modes
-  of their own density (Gaussian mean shift, bandwidth h, `MODE_ITERATIONS` steps; the
+  of their own density (Gaussian mean shift, bandwidth h, at most `MODE_ITERATIONS`
+  steps, a point stopping once its step is under `MODE_SETTLED` h; the
   kernel's support is the type's shifted points, which stay put). The votes of one part
   scatter about its centre; two neighbouring parts' scatters touch, and the flood fill
   chains through the contact. Contracted onto their modes, they come apart. The confidence's
@@ -61,23 +62,53 @@ STATIC = MOTION_TYPES.index("static")
 #: mean-shift steps of `seek_modes`: at the bandwidths chosen (0.05-0.1 cloud radii) the
 #: points have settled by then
 MODE_ITERATIONS = 10
+#: rows of the mean-shift kernel formed at once (`seek_modes`): 256 x 3,000 float64 is 6 MB
+MODE_ROWS = 256
+#: a mean-shift step shorter than this many bandwidths ends the point's climb (`seek_modes`)
+MODE_SETTLED = 1e-6
 
 
 def seek_modes(
     points: NDArray[np.floating], bandwidth: float, iterations: int = MODE_ITERATIONS
 ) -> NDArray[np.float64]:
-    """Gaussian mean shift: every point of `points` (n, 3) moved `iterations` times to the
-    kernel-weighted mean of `points` around it (bandwidth in the points' units). O(n^2)
-    per step; n is at most the network's input size times `InferenceConfig.passes`."""
+    """Gaussian mean shift: every point of `points` (n, 3) moved up to `iterations` times
+    to the kernel-weighted mean of `points` around it (bandwidth in the points' units).
+    The kernel's support stays put, so each point's path is its own: a point whose step
+    was shorter than `MODE_SETTLED` bandwidths stops there (the steps shrink about tenfold
+    per iteration near a mode, so it would have moved about a tenth of that further).
+    O(n^2) per step; n is at most the network's input size times `InferenceConfig.passes`.
+
+    The kernel is formed `MODE_ROWS` rows at a time in one reused buffer, in place: the
+    whole n x n matrix and its temporaries (72 MB each at 3,000 points) left the cache at
+    every operation (docs/hierarchy.md, "Speed")."""
     x = np.asarray(points, dtype=np.float64)
     y = x.copy()
     xx = (x * x).sum(1)
+    xt = np.ascontiguousarray(x.T)
+    scale = -0.5 / (bandwidth * bandwidth)
+    block = np.empty((min(MODE_ROWS, len(x)), len(x)))
+    moving = np.arange(len(x))
     for _ in range(iterations):
-        # |y - x|^2 as |y|^2 + |x|^2 - 2 y.x: a matrix product instead of an (n, n, 3) array
-        # (5x faster at 1,200 points; equal to 1e-14)
-        d2 = np.maximum((y * y).sum(1)[:, None] + xx[None, :] - 2.0 * (y @ x.T), 0.0)
-        w = np.exp(-0.5 * d2 / (bandwidth * bandwidth))
-        y = (w @ x) / w.sum(1, keepdims=True)
+        if not len(moving):
+            break
+        here = y[moving]
+        there = np.empty_like(here)
+        yy = (here * here).sum(1)
+        for start in range(0, len(here), MODE_ROWS):
+            rows = slice(start, start + MODE_ROWS)
+            w = block[: len(here[rows])]
+            # |y - x|^2 as |y|^2 + |x|^2 - 2 y.x: a matrix product instead of an (n, n, 3)
+            # array
+            np.matmul(here[rows], xt, out=w)
+            w *= -2.0
+            w += yy[rows, None]
+            w += xx[None, :]
+            np.maximum(w, 0.0, out=w)
+            w *= scale
+            np.exp(w, out=w)
+            there[rows] = (w @ x) / w.sum(1, keepdims=True)
+        y[moving] = there
+        moving = moving[np.linalg.norm(there - here, axis=1) >= MODE_SETTLED * bandwidth]
     return y
 
 
@@ -96,6 +127,35 @@ def seek_type_modes(
                 members = motion == t
                 out[members] = seek_modes(out[members], bandwidth)
     return out
+
+
+def radius_components(points: NDArray[np.floating], radius: float) -> NDArray[np.int64]:
+    """The connected components of the graph joining the points (n, 3) closer than
+    `radius` (at most), numbered in the order of their first point: scipy's
+    `connected_components` of that graph, label for label.
+
+    The votes of a part stand on its mode after mode seeking, so that graph has up to a
+    million edges for 3,000 points, and building and transposing it took most of the time.
+    Points in one grid cell of side radius / sqrt(3) are closer than `radius`, so they are
+    one component whatever else holds: the components are those of the cells joined by
+    the pairs that cross cells, a graph of a few hundred nodes and edges."""
+    x = np.asarray(points, dtype=np.float64)
+    side = radius / np.sqrt(3.0) * (1.0 - 1e-9)  # a cell's diagonal safely under the radius
+    _, cell = np.unique(np.floor(x / side), axis=0, return_inverse=True)
+    cell = cell.reshape(-1)
+    pairs = cKDTree(x).query_pairs(radius, output_type="ndarray")
+    across = pairs[cell[pairs[:, 0]] != cell[pairs[:, 1]]]
+    cells = int(cell.max()) + 1 if len(cell) else 0
+    graph = coo_matrix(
+        (np.ones(len(across)), (cell[across[:, 0]], cell[across[:, 1]])), shape=(cells, cells)
+    )
+    _, joined = connected_components(graph, directed=False)
+    component = joined[cell]
+    # renumbered by first point, as connected_components numbers the points' own graph
+    _, first = np.unique(component, return_index=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    return rank[component]
 
 
 class VoteOutput(NamedTuple):
@@ -216,11 +276,7 @@ def cluster_votes(
         if t in one_part:
             groups.append(members)
             continue
-        pairs = cKDTree(shifted[members]).query_pairs(radii[t], output_type="ndarray")
-        graph = coo_matrix(
-            (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(members),) * 2
-        )
-        _, component = connected_components(graph, directed=False)
+        component = radius_components(shifted[members], float(radii[t]))
         order = np.argsort(component, kind="stable")
         starts = np.flatnonzero(np.diff(component[order], prepend=-1))
         groups.extend(members[part] for part in np.split(order, starts[1:]))
