@@ -84,7 +84,7 @@ KINDS: dict[str, ModelKind] = {
             4,
             "artic segment, artic infer-hierarchy",
             "`artic pipeline ch4` (generate, scan, train segmenter and graph network, "
-            "evaluate; about an hour per category on 2 CPU cores, three categories)",
+            "evaluate; about 1.5 hours per category on 2 CPU cores, three categories)",
             "mAP",
         ),
         ModelKind(
@@ -93,7 +93,7 @@ KINDS: dict[str, ModelKind] = {
             4,
             "artic build-hierarchy, artic infer-hierarchy",
             "`artic pipeline ch4` (generate, scan, train segmenter and graph network, "
-            "evaluate; about an hour per category on 2 CPU cores, three categories)",
+            "evaluate; about 1.5 hours per category on 2 CPU cores, three categories)",
             "Tree F1",
         ),
     )
