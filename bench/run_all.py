@@ -288,6 +288,20 @@ def _cabinet_scan(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndar
 _GRAPH_STEPS = ("graph", "labelling", "tree", "joints")
 
 
+def _infer_hierarchy_runs(scan: Path, outs: list[Path], *options: str) -> list[float]:
+    """Wall times of `artic infer-hierarchy scan --out o *options` for each o of `outs`, in
+    turn (the first warms the file cache: callers leave it out of their medians)."""
+    walls = []
+    for out in outs:
+        t0 = time.perf_counter()
+        subprocess.run(
+            [*ARTIC, "infer-hierarchy", str(scan), *options, "--out", str(out)],
+            check=True, capture_output=True,
+        )  # fmt: skip
+        walls.append(time.perf_counter() - t0)
+    return walls
+
+
 def hierarchy_benchmark(tmp: Path, points: int = 20_000) -> dict[str, object]:
     """`infer-hierarchy` on a `points`-point scan with the default networks (untrained):
     in-process medians of 5 runs (models loaded) of the whole pipeline and of its steps;
@@ -314,16 +328,9 @@ def hierarchy_benchmark(tmp: Path, points: int = 20_000) -> dict[str, object]:
     true_parts = {k: statistics.median(b.timings[k] for b in built) for k in built[0].timings}
     scan = tmp / "scan.ply"
     write_ply(scan, cloud)
-    walls = []
     # the user's journey: the shipped storage-furniture models (their labeller's program
     # ships too, artic.hierarchy.compiled); run 0 warms the file cache and is not counted
-    for i in range(6):
-        t0 = time.perf_counter()
-        subprocess.run(
-            [*ARTIC, "infer-hierarchy", str(scan), "--out", str(tmp / f"h{i}")],
-            check=True, capture_output=True,
-        )  # fmt: skip
-        walls.append(time.perf_counter() - t0)
+    walls = _infer_hierarchy_runs(scan, [tmp / f"h{i}" for i in range(6)])
     return {
         "points": points,
         "threads": available_cpus(),
@@ -363,18 +370,11 @@ def hierarchy_category_benchmark(tmp: Path, points: int = 20_000) -> list[dict[s
         ):  # fmt: skip
             subprocess.run([*ARTIC, *stage], check=True, capture_output=True)
         (scan,) = sorted((scans / "scans").glob("*_00_clean.ply"))[-1:]
-        walls, computes, parts = [], [], 0
-        for i in range(6):
-            out = tmp / f"h_{category}{i}"
-            t0 = time.perf_counter()
-            subprocess.run(
-                [*ARTIC, "infer-hierarchy", str(scan), "--category", category, "--out", str(out)],
-                check=True, capture_output=True,
-            )  # fmt: skip
-            walls.append(time.perf_counter() - t0)
-            result = json.loads((out / "hierarchy.json").read_text())
-            computes.append(float(result["timings_s"]["total"]))
-            parts = int(result["num_parts"])
+        outs = [tmp / f"h_{category}{i}" for i in range(6)]
+        walls = _infer_hierarchy_runs(scan, outs, "--category", category)
+        results = [json.loads((out / "hierarchy.json").read_text()) for out in outs]
+        computes = [float(r["timings_s"]["total"]) for r in results]
+        parts = int(results[-1]["num_parts"])
         rows.append({
             "category": category,
             "points": points,

@@ -141,13 +141,12 @@ def radius_components(points: NDArray[np.floating], radius: float) -> NDArray[np
     the pairs that cross cells, a graph of a few hundred nodes and edges."""
     x = np.asarray(points, dtype=np.float64)
     side = radius / np.sqrt(3.0) * (1.0 - 1e-9)  # a cell's diagonal safely under the radius
-    _, cell = np.unique(np.floor(x / side), axis=0, return_inverse=True)
+    keys, cell = np.unique(np.floor(x / side), axis=0, return_inverse=True)
     cell = cell.reshape(-1)
     pairs = cKDTree(x).query_pairs(radius, output_type="ndarray")
     across = pairs[cell[pairs[:, 0]] != cell[pairs[:, 1]]]
-    cells = int(cell.max()) + 1 if len(cell) else 0
     graph = coo_matrix(
-        (np.ones(len(across)), (cell[across[:, 0]], cell[across[:, 1]])), shape=(cells, cells)
+        (np.ones(len(across)), (cell[across[:, 0]], cell[across[:, 1]])), shape=(len(keys),) * 2
     )
     _, joined = connected_components(graph, directed=False)
     component = joined[cell]
