@@ -26,7 +26,8 @@ pose x, y, z, yaw, the body's depth, width, height, the chirality and each door'
      stays the network's;
    - the base height z from the bottom silhouette edge (`_bottom_edge`: every face that
      stands on the base ends there: the body's, and each door hinged at the base, not a
-     refrigerator's upper door); the doors' lift above it (`_lift`: a plinth or kick
+     refrigerator's upper door; its columns' `EDGE_QUANTILE` quantile, as a sensor loses
+     edge pixels); the doors' lift above it (`_lift`: a plinth or kick
      plate under the front, which the box model lacks, read off the doors' own bottom
      edge; it moves the label's joint origins, not the rendered box); depth, width and
      height stay the network's here;
@@ -197,6 +198,13 @@ PANEL_SHARES = (0.1, 0.4)
 MIN_EDGE_PIXELS = 5
 #: an edge pixel's rendered hypothesis must end within this many rows below it
 EDGE_ROWS = 3
+#: a depth sensor loses pixels at depth edges: the sensor model's
+#: (conf/common/noise/kinect.yaml) each with probability p = 0.5, so a column of the bottom
+#: edge whose last pixel is lost reads a pixel high. Of per-column readings spread over a
+#: pixel (where the edge falls within it), a share p of them a pixel higher, the
+#: (1 - p) / 2 quantile is the edge's own median: the base height is that quantile
+#: (`_base_height`; the median read the microwave's base 0.6 cm high, docs/kinematics.md)
+EDGE_QUANTILE = 0.25
 #: the other hinge side replaces the network's when its residual is lower by this fraction,
 #: when the mixture puts all its weight on the network's side; the margin shrinks with that
 #: weight w as SIDE_MARGIN (2 w - 1), to 0 for a mixture split evenly between the sides
@@ -1057,12 +1065,18 @@ def _line_search(
 
 
 def _base_height(h: Hypothesis, faces: _Faces) -> float:
-    return float(np.median(faces.bottom)) if len(faces.bottom) >= MIN_EDGE_PIXELS else h.z
+    """The base height (camera z) off the bottom silhouette edge's readings, their
+    `EDGE_QUANTILE` quantile (the edge pixels the sensor lost read high); `h`'s own below
+    `MIN_EDGE_PIXELS` readings (the base out of the image, or hidden)."""
+    if len(faces.bottom) < MIN_EDGE_PIXELS:
+        return h.z
+    return float(np.quantile(faces.bottom, EDGE_QUANTILE))
 
 
 def _lift(h: Hypothesis, faces: _Faces, base: float) -> float:
     """How far the doors stand above the `base` height (camera z) the bottom silhouette
-    edge gave (`_bottom_edge`): the median bottom edge of the doors' broad faces
+    edge gave (`_bottom_edge`): the doors' broad faces' bottom edge (its `EDGE_QUANTILE`
+    quantile over the columns, as the base's)
     (`_face_bottoms`; not the body's front: a plinth recessed 3 cm behind it is within the
     noise's reach of its plane, where behind a door it is a door's thickness further)
     minus the base; 0 below `MIN_LIFT` (the sensor's noise on an object with no plinth)
@@ -1077,7 +1091,7 @@ def _lift(h: Hypothesis, faces: _Faces, base: float) -> float:
     low, high = np.quantile(edges, [0.25, 0.75])
     if high - low > LIFT_SPREAD:  # a door's bottom edge is level: these edges are not it
         return h.lift
-    lift = float(np.median(edges)) - base
+    lift = float(np.quantile(edges, EDGE_QUANTILE)) - base  # as the base: lost edge pixels
     return lift if MIN_LIFT <= lift <= MAX_LIFT else 0.0
 
 
