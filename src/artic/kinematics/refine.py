@@ -1367,7 +1367,8 @@ def _refit_width(
     lower: Array,
     upper: Array,
 ) -> Candidate:
-    """The chosen door candidate with its width fitted too (`_fit_width`), then
+    """The chosen door candidate with its width fitted too (`_fit_width`; without a
+    side face to fit it from, the front's far edge, `front_width`), then
     `refine_hypothesis`'s rounds on that geometry, when its depth residual is lower and its
     yaw and q stay inside the mixture's interval; else `best`. The width is the network's
     until here: every candidate shares one built object per hinge side, and a side face
@@ -1390,7 +1391,11 @@ def _refit_width(
             # the first round's tolerance: a side 4 cm from where the width puts it is still its
             faces = _faces(h, image, door_poses, renderer.doors, observed, rays, TOLERANCES[0],
                            renderer.door_thickness)  # fmt: skip
-            start = _fit_width(h, faces, renderer.doors)
+            # no side face where the width puts it (a width 10 cm off puts it beyond the
+            # first round's tolerance; or no side in view): the front's far edge, as a flap's
+            start = _fit_width(h, faces, renderer.doors) or front_width(
+                h, observed, camera, renderer.door_thickness
+            )
     finally:
         renderer.close()
     if start is None:
