@@ -833,6 +833,23 @@ def test_without_a_side_face_the_fronts_far_edge_fixes_the_width(q):
     assert np.linalg.norm(_origin(result.label) - _origin(_label(truth, "microwave"))) < 0.015
 
 
+def test_a_width_the_builder_refuses_keeps_the_candidate(monkeypatch):
+    """A front's far edge read far too near gives a width no object can be built at (a
+    second-generator refrigerator read 10 cm wide, narrower than its 5-7 cm doors' walls;
+    here 2 cm): the chosen candidate stays as it was, and `refine` does not raise."""
+    import artic.kinematics.refine as refine_module
+
+    monkeypatch.setattr(refine_module, "_fit_width", lambda h, faces, doors: None)
+    monkeypatch.setattr(refine_module, "front_width",
+                        lambda h, *_: dataclasses.replace(h, width=0.02))  # fmt: skip
+    truth = dataclasses.replace(_truth("cabinet", 1, 0.3, yaw=0.3), qs=(0.3, 0.2), height=0.85)
+    observed = _image(truth, "refrigerator")
+    estimate = _label(truth, "refrigerator", COLUMNS_2)
+    result = refine(observed, CAMERA, "refrigerator", COLUMNS_2, estimate, np.array([1.0]),
+                    estimate[None], *_wide(estimate))  # fmt: skip
+    assert result.label[COLUMNS_2.index("width")] == pytest.approx(truth.width)
+
+
 def _wall_over(below: float | None, edge_z: float = -0.3, x: float = 2.0) -> np.ndarray:
     """A depth image of a vertical plane x = `x` facing the camera down to height
     `edge_z`, and under it a surface at depth `below` (None: the background)."""

@@ -1400,7 +1400,10 @@ def _refit_width(
         renderer.close()
     if start is None:
         return best
-    renderer = PosedRenderer(start, category, parts, camera)
+    try:
+        renderer = PosedRenderer(start, category, parts, camera)
+    except ValueError:  # a width the builder refuses (a front read narrower than its walls)
+        return best
     try:
         fitted, residual = refine_hypothesis(start, renderer, observed, rays)
         label = renderer.label(fitted, category, columns)
