@@ -1075,9 +1075,9 @@ def _base_height(h: Hypothesis, faces: _Faces) -> float:
 
 def _lift(h: Hypothesis, faces: _Faces, base: float) -> float:
     """How far the doors stand above the `base` height (camera z) the bottom silhouette
-    edge gave (`_bottom_edge`): the doors' broad faces' bottom edge (its `EDGE_QUANTILE`
-    quantile over the columns, as the base's)
-    (`_face_bottoms`; not the body's front: a plinth recessed 3 cm behind it is within the
+    edge gave (`_bottom_edge`): the bottom edge of the doors' broad faces, its
+    `EDGE_QUANTILE` quantile over the columns as the base's (`_face_bottoms`; not the
+    body's front: a plinth recessed 3 cm behind it is within the
     noise's reach of its plane, where behind a door it is a door's thickness further)
     minus the base; 0 below `MIN_LIFT` (the sensor's noise on an object with no plinth)
     and above `MAX_LIFT` (no plinth or kick plate is that tall: a misread); the hypothesis'
