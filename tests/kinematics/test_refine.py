@@ -1130,3 +1130,68 @@ def _both_sides(truth: Hypothesis) -> list[Candidate]:
 
 def _side_of(h: Hypothesis, side: int) -> Hypothesis:
     return h if h.chirality == side else h.mirrored()
+
+
+@pytest.mark.parametrize("chirality", [1, -1])
+def test_refinement_fits_the_depth_the_side_in_view_shows(chirality):
+    """A network's depth 8 cm short, the width right: the side in view reaches back to its
+    far edge against the background (`side_depth`), which gives the depth, and the base
+    moves back with it while the front stays where the image puts it."""
+    truth = _truth("cabinet", chirality, 0.7, yaw=-0.5 * chirality, y=0.25 * chirality)
+    observed = _image(truth, "cabinet")
+    estimate = _label(dataclasses.replace(truth, depth=truth.depth - 0.08), "cabinet")
+    result = refine(observed, CAMERA, "cabinet", COLUMNS, estimate, np.array([1.0]),
+                    estimate[None], *_wide(estimate))  # fmt: skip
+    assert result.refined, result.status
+    assert result.label[COLUMNS.index("depth")] == pytest.approx(truth.depth, abs=0.015)
+    base = [COLUMNS.index(c) for c in ("pose_x", "pose_y")]
+    assert np.linalg.norm(result.label[base] - _label(truth, "cabinet")[base]) < 0.015
+
+
+def _side_first(truth: Hypothesis) -> Hypothesis:
+    """`truth` read side-first: a quarter turn, the width and depth swapped, the front on
+    the side in view (the same footprint)."""
+    bearing = math.atan2(truth.y, truth.x)
+    yaw = max((truth.yaw + math.pi / 2, truth.yaw - math.pi / 2),
+              key=lambda y: math.cos(y - bearing))  # fmt: skip
+    return dataclasses.replace(truth, yaw=yaw, depth=truth.width, width=truth.depth)
+
+
+@pytest.mark.parametrize("chirality", [1, -1])
+def test_a_box_read_side_first_is_turned_a_quarter_when_its_front_shows_a_handle(chirality):
+    """A closed cabinet turned 45 deg (front and side show alike), the network's estimate a
+    quarter turn off with its width and depth swapped (the microwave of Table 3.1's object
+    252, the cabinet's object 10): the turned candidate finds the handle on the face it
+    calls the front and fits the depth better, so it is kept, with the true yaw and hinge
+    side, the hinge within 5 cm (the width read off a closed door at 45 deg is about 4 cm
+    short); the status says so. Read right, the same cabinet is not turned."""
+    truth = Hypothesis(1.6, -0.1 * chirality, -0.6, 0.8 * chirality, 0.45, 0.5, 0.6,
+                       chirality, (0.0,))  # fmt: skip
+    observed = _image(truth, "cabinet")
+    estimate = _label(_side_first(truth), "cabinet")
+    result = refine(observed, CAMERA, "cabinet", COLUMNS, estimate, np.array([1.0]),
+                    estimate[None], *_wide(estimate))  # fmt: skip
+    assert "turned a quarter" in result.status, result.status
+    yaw = result.label[COLUMNS.index("pose_yaw")]
+    assert abs(math.remainder(yaw - truth.yaw, 2 * math.pi)) < math.radians(2.0)
+    assert result.label[COLUMNS.index("chirality")] == chirality
+    assert np.linalg.norm(_origin(result.label) - _origin(_label(truth, "cabinet"))) < 0.05
+    right = _label(truth, "cabinet")
+    result = refine(observed, CAMERA, "cabinet", COLUMNS, right, np.array([1.0]),
+                    right[None], *_wide(right))  # fmt: skip
+    assert "turned" not in result.status, result.status
+
+
+def test_a_front_without_features_is_never_turned():
+    """The same cabinet with a handle under the tests' threshold: no test finds a front's
+    features on either face, so the turned candidates are not admitted whatever their
+    residual, and the network's reading stands, the right one or the side-first one."""
+    flat = PartsConfig(handle_standoff=0.001, handle_thickness=0.004)
+    truth = Hypothesis(1.6, -0.1, -0.6, 0.8, 0.45, 0.5, 0.6, 1, (0.0,))
+    with make_backend("raycast", CAMERA) as backend:
+        observed = backend.render(build(truth.spec("cabinet", flat)), np.array(truth.qs)).depth
+    for start in (truth, _side_first(truth)):
+        estimate = _label(start, "cabinet")
+        result = refine(observed, CAMERA, "cabinet", COLUMNS, estimate, np.array([1.0]),
+                        estimate[None], *_wide(estimate))  # fmt: skip
+        assert "turned" not in result.status, result.status
