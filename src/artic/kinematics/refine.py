@@ -1020,7 +1020,9 @@ def side_depth(
     back by half the change); None when that side shows too little (`MIN_WIDTH_POINTS`).
     The observed points within `WIDTH_BAND` of the side's plane, over the body's height,
     reach back along it to its far edge against the background: their `WIDTH_QUANTILE`
-    quantile, half a pixel beyond (`_pixel_along`), as `front_width` reads the front's."""
+    quantile, half a pixel beyond (`_pixel_along`), as `front_width` reads the front's.
+    None too when a point there lies on the image's border row or column: the side runs out
+    of the image (an object near the camera), and its end is not the object's back."""
     c, s = math.cos(h.yaw), math.sin(h.yaw)
     seen = 1.0 if h.x * s - h.y * c > 0 else -1.0  # the side in view lies at y = seen w / 2
     local = _object_points(h, observed, camera)
@@ -1029,7 +1031,17 @@ def side_depth(
     near &= (local[:, 0] > -h.depth / 2) & (local[:, 0] < h.depth / 2 + WIDTH_SPAN)
     if int(near.sum()) < MIN_WIDTH_POINTS:
         return None
-    far = float(np.quantile(local[near, 0], WIDTH_QUANTILE)) + 0.5 * _pixel_along(h, camera)
+    edge = float(np.quantile(local[near, 0], WIDTH_QUANTILE))
+    rows, cols = np.nonzero(np.where(np.isfinite(observed), observed, 0) > 0)  # local's pixels
+    at_edge = near & (local[:, 0] >= edge)
+    if (
+        rows[at_edge].min() == 0
+        or cols[at_edge].min() == 0
+        or rows[at_edge].max() == camera.height - 1
+        or cols[at_edge].max() == camera.width - 1
+    ):
+        return None  # fmt: skip
+    far = edge + 0.5 * _pixel_along(h, camera)
     depth = max(far + h.depth / 2, 0.1)  # the front lies at -h.depth / 2
     d = depth - h.depth
     return dataclasses.replace(h, depth=depth, x=h.x + d / 2 * c, y=h.y + d / 2 * s)
