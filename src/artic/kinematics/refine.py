@@ -60,10 +60,10 @@ sides, refined and sized as above. The depth residual alone cannot tell the two 
 apart (of closed microwaves, the turned candidate of a right reading fitted 15-26% better
 as often as that of a side-first one), so a turned candidate has a test of its own: it is
 kept only when no hinge-side test (below) found a front's features (a handle, the front's
-step, the control panel or its seam) on the chosen candidate's front, one found them on
-the turned candidates' front (a side face has none), and its residual is lower by
-`TURN_MARGIN`. Its yaw is outside the mixture's interval by construction; its q is held to
-it. The status says "turned a quarter".
+step, the control panel or its seam) on the chosen candidate's front, the handle test
+found a handle on the turned candidates' front (`TURN_TESTS`; a side face has none), and
+its residual is lower by `TURN_MARGIN`. Its yaw is outside the mixture's interval by
+construction; its q is held to it. The status says "turned a quarter".
 
 On a nearly closed door (every door, for a refrigerator) the handle then has the last word
 on the hinge side (`handle_side`; the first door's handle, a refrigerator's lower one): a
@@ -224,8 +224,12 @@ EDGE_QUANTILE = 0.25
 #: weight w as SIDE_MARGIN (2 w - 1), to 0 for a mixture split evenly between the sides
 SIDE_MARGIN = 0.25
 #: a quarter-turned candidate (`_turned`) replaces the chosen one when its residual is lower
-#: by this fraction, and is tried only when its front faces the camera within this (rad)
+#: by this fraction and one of these hinge-side tests names its side (the handle's: a
+#: control panel's recess was once found on a second-generator microwave's side face, none
+#: of the others ever turned a box right), and is tried only when its front faces the
+#: camera within `TURN_INCIDENCE` (rad)
 TURN_MARGIN = 0.15
+TURN_TESTS = ("the handle's side",)
 TURN_INCIDENCE = math.radians(70.0)
 #: a point below a face's lowest pixel is still on the face within this of its plane (m;
 #: `_face_bottoms`): a plinth recessed behind a door is farther
@@ -1346,15 +1350,16 @@ def refine(
             turned, best.chirality, 0.5, columns, category, parts, (image, view),
             (observed, camera),
         )  # fmt: skip
-        # ... and one found them on the turned candidates' (a handle, the front's step,
-        # the control panel or its seam: a side face has none)
-        if other_named_by and other.residual < (1.0 - TURN_MARGIN) * best.residual:
-            best, named_by = other, f", turned a quarter{other_named_by}"
+        # ... and a handle on the turned candidates' front (a side face has none)
+        if other_named_by in TURN_TESTS and other.residual < (1.0 - TURN_MARGIN) * best.residual:
+            best, named_by = other, other_named_by
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
         return Refinement(estimate, False, status, residual_network, residual_network,
                           tuple(candidates))  # fmt: skip
-    status = f"refined: component {best.component}, chirality {best.chirality:+d}{named_by}"
+    turn = ", turned a quarter" if best.turned else ""
+    named = f" ({named_by})" if named_by else ""
+    status = f"refined: component {best.component}, chirality {best.chirality:+d}{turn}{named}"
     return Refinement(best.label, True, status, residual_network, best.residual, tuple(candidates))
 
 
@@ -1372,8 +1377,8 @@ def _pick_side(
     network's side unless the other side's is lower by a margin (`_choose_side`, the
     mixture's `weight` on `network_side`), then the hinge-side tests of a door's category in
     turn (module docstring), the first to name a side deciding; the control panel's three
-    say None but for `PANEL_BESIDE`. `detail`: the image in its own camera; `model_view`:
-    in the model's."""
+    say None but for `PANEL_BESIDE`; the test's name, "" when none named a side. `detail`:
+    the image in its own camera; `model_view`: in the model's."""
     best = _choose_side(candidates, network_side, weight)
     image, view = detail
     observed, camera = model_view
@@ -1391,7 +1396,7 @@ def _pick_side(
     for name, test in tests if category in SIDED else ():
         side = test()
         if side is not None:
-            named_by = f" ({name})"
+            named_by = name
             break
     if side is not None and side != best.chirality:
         # a vote by the other side's candidate may name a side with no candidate inside
