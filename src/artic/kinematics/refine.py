@@ -1432,22 +1432,14 @@ def _turned(
     free_yaw = columns.index("pose_yaw")
     lower, upper = lower.copy(), upper.copy()
     lower[free_yaw], upper[free_yaw] = -math.inf, math.inf
-    rays = camera.ray_directions()
     turned = []
     for side in (best.chirality, -best.chirality):
         start = dataclasses.replace(h, yaw=_wrap(yaw), depth=h.width, width=h.depth,
                                     chirality=side)  # fmt: skip
-        try:
-            renderer = PosedRenderer(start, category, parts, camera)
-        except ValueError:
+        result = _rounds_from(start, observed, camera, category, columns, parts)
+        if result is None or not interval_ok(result[2], columns, lower, upper):
             continue
-        try:
-            fitted, residual = refine_hypothesis(start, renderer, observed, rays)
-            label = renderer.label(fitted, category, columns)
-        finally:
-            renderer.close()
-        if not interval_ok(label, columns, lower, upper):
-            continue
+        fitted, residual, label = result
         c = Candidate(best.component, best.weight, side, residual, True, label, fitted, turned=True)
         turned.append(_refit_sizes(c, observed, camera, category, columns, parts, lower, upper))
     return turned
@@ -1583,20 +1575,36 @@ def _refit(
     """`refine_hypothesis`'s rounds from `start` (another geometry than `best`'s) and
     whether they replaced `best`: when their depth residual is lower and their yaw and q
     lie inside the mixture's interval."""
-    if start is None:
+    result = None if start is None else _rounds_from(start, observed, camera, category,
+                                                     columns, parts)  # fmt: skip
+    if result is None:
         return best, False
-    try:
-        renderer = PosedRenderer(start, category, parts, camera)
-    except ValueError:  # a width the builder refuses (a front read narrower than its walls)
-        return best, False
-    try:
-        fitted, residual = refine_hypothesis(start, renderer, observed, camera.ray_directions())
-        label = renderer.label(fitted, category, columns)
-    finally:
-        renderer.close()
+    fitted, residual, label = result
     if not (residual < best.residual and interval_ok(label, columns, lower, upper)):
         return best, False
     return dataclasses.replace(best, residual=residual, label=label, hypothesis=fitted), True
+
+
+def _rounds_from(
+    start: Hypothesis,
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    parts: PartsConfig,
+) -> tuple[Hypothesis, float, Array] | None:
+    """`refine_hypothesis`'s rounds from `start` on an object built at its geometry: the
+    result, its residual and its label; None for a geometry the builder refuses (a width
+    read narrower than the object's walls)."""
+    try:
+        renderer = PosedRenderer(start, category, parts, camera)
+    except ValueError:
+        return None
+    try:
+        fitted, residual = refine_hypothesis(start, renderer, observed, camera.ray_directions())
+        return fitted, residual, renderer.label(fitted, category, columns)
+    finally:
+        renderer.close()
 
 
 def _fit_width(h: Hypothesis, faces: _Faces, doors: Sequence[_Door]) -> Hypothesis | None:
