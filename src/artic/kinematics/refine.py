@@ -1044,7 +1044,7 @@ def side_depth(
         or rows[at_edge].max() == camera.height - 1
         or cols[at_edge].max() == camera.width - 1
     ):
-        return None  # fmt: skip
+        return None
     far = edge + 0.5 * _pixel_along(h, camera)
     depth = max(far + h.depth / 2, 0.1)  # the front lies at -h.depth / 2
     d = depth - h.depth
