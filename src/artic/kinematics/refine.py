@@ -61,7 +61,7 @@ apart (of closed microwaves, the turned candidate of a right reading fitted 15-2
 as often as that of a side-first one), so a turned candidate has a test of its own: it is
 kept only when no hinge-side test (below) found a front's features (a handle, the front's
 step, the control panel or its seam) on the chosen candidate's front, the handle test
-found a handle on the turned candidates' front (`TURN_TESTS`; a side face has none), and
+found a handle on the turned candidates' front (`handle_side`; a side face has none), and
 its residual is lower by `TURN_MARGIN`. Its yaw is outside the mixture's interval by
 construction; its q is held to it. The status says "turned a quarter".
 
@@ -224,13 +224,14 @@ EDGE_QUANTILE = 0.25
 #: weight w as SIDE_MARGIN (2 w - 1), to 0 for a mixture split evenly between the sides
 SIDE_MARGIN = 0.25
 #: a quarter-turned candidate (`_turned`) replaces the chosen one when its residual is lower
-#: by this fraction and one of these hinge-side tests names its side (the handle's: a
-#: control panel's recess was once found on a second-generator microwave's side face, none
-#: of the others ever turned a box right), and is tried only when its front faces the
-#: camera within `TURN_INCIDENCE` (rad)
+#: by this fraction and the handle test (`handle_side`) names its side (not the other
+#: hinge-side tests: a control panel's recess was once found on a second-generator
+#: microwave's side face, and none of them ever turned a box right), and is tried only when
+#: its front faces the camera within `TURN_INCIDENCE` (rad)
 TURN_MARGIN = 0.15
-TURN_TESTS = ("the handle's side",)
 TURN_INCIDENCE = math.radians(70.0)
+#: the handle test's name in a refinement's status
+HANDLE_TEST = "the handle's side"
 #: a point below a face's lowest pixel is still on the face within this of its plane (m;
 #: `_face_bottoms`): a plinth recessed behind a door is farther
 LIFT_TOLERANCE = 0.025
@@ -1024,7 +1025,7 @@ def side_depth(
     back by half the change); None when that side shows too little (`MIN_WIDTH_POINTS`).
     The observed points within `WIDTH_BAND` of the side's plane, over the body's height,
     reach back along it to its far edge against the background: their `WIDTH_QUANTILE`
-    quantile, half a pixel beyond (`_pixel_along`), as `front_width` reads the front's.
+    quantile, half a pixel beyond (`_pixel_across`), as `front_width` reads the front's.
     None too when a point there lies on the image's border row or column: the side runs out
     of the image (an object near the camera), and its end is not the object's back."""
     c, s = math.cos(h.yaw), math.sin(h.yaw)
@@ -1045,16 +1046,10 @@ def side_depth(
         or cols[at_edge].max() == camera.width - 1
     ):
         return None
-    far = edge + 0.5 * _pixel_along(h, camera)
+    far = edge + 0.5 * _pixel_across(h, camera, side=True)
     depth = max(far + h.depth / 2, 0.1)  # the front lies at -h.depth / 2
     d = depth - h.depth
     return dataclasses.replace(h, depth=depth, x=h.x + d / 2 * c, y=h.y + d / 2 * s)
-
-
-def _pixel_along(h: Hypothesis, camera: CameraIntrinsics) -> float:
-    """One pixel's length along `h`'s side in view (m), as `_pixel_across` the front's."""
-    incidence = max(abs(math.sin(h.yaw - math.atan2(h.y, h.x))), 0.2)
-    return math.hypot(h.x, h.y) / camera.fx / incidence
 
 
 def _object_points(h: Hypothesis, depth: NDArray[np.floating], camera: CameraIntrinsics) -> Array:
@@ -1065,10 +1060,12 @@ def _object_points(h: Hypothesis, depth: NDArray[np.floating], camera: CameraInt
     return np.asarray((camera.back_project(image) - pose[:3, 3]) @ pose[:3, :3])
 
 
-def _pixel_across(h: Hypothesis, camera: CameraIntrinsics) -> float:
-    """One pixel's width across `h`'s front (m): a pixel at the object's distance over the
-    cosine of the angle between the line of sight and the front's normal (at most 5x)."""
-    incidence = max(abs(math.cos(h.yaw - math.atan2(h.y, h.x))), 0.2)
+def _pixel_across(h: Hypothesis, camera: CameraIntrinsics, side: bool = False) -> float:
+    """One pixel's width across `h`'s front (m; along its side in view with `side`): a
+    pixel at the object's distance over the cosine of the angle between the line of sight
+    and the face's normal (at most 5x; the side's normal is the front's turned a quarter)."""
+    angle = h.yaw - math.atan2(h.y, h.x)
+    incidence = max(abs(math.sin(angle) if side else math.cos(angle)), 0.2)
     return math.hypot(h.x, h.y) / camera.fx / incidence
 
 
@@ -1346,13 +1343,12 @@ def refine(
                                          lower, upper)  # fmt: skip
     if turned:
         candidates.extend(turned)
-        other, other_named_by = _pick_side(
-            turned, best.chirality, 0.5, columns, category, parts, (image, view),
-            (observed, camera),
-        )  # fmt: skip
-        # ... and a handle on the turned candidates' front (a side face has none)
-        if other_named_by in TURN_TESTS and other.residual < (1.0 - TURN_MARGIN) * best.residual:
-            best, named_by = other, other_named_by
+        # ... and a handle on the turned candidates' front (a side face has none; the other
+        # hinge-side tests admit no turn: `TURN_MARGIN`), the side it names the turn's
+        side = handle_side(turned, columns, category, parts, image, view)
+        other = min([c for c in turned if c.chirality == side] or turned, key=lambda c: c.residual)
+        if side is not None and other.residual < (1.0 - TURN_MARGIN) * best.residual:
+            best, named_by = other, HANDLE_TEST
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
         return Refinement(estimate, False, status, residual_network, residual_network,
@@ -1383,7 +1379,7 @@ def _pick_side(
     image, view = detail
     observed, camera = model_view
     tests: tuple[tuple[str, Callable[[], int | None]], ...] = (
-        ("the handle's side",
+        (HANDLE_TEST,
          lambda: handle_side(candidates, columns, category, parts, image, view)),
         ("the front's shape",
          lambda: front_side(candidates, columns, category, parts, image, view)),
