@@ -16,8 +16,10 @@ from artic.objects.parts import Box, mass_properties, union_mesh
 from artic.objects.tree import latin_hypercube
 from artic.objects.urdf import write_urdf
 from artic.render.backend import make_backend
+from artic.render.open3d_core import open3d_core
 from artic.render.raycast import rigid_groups
 
+o3c = open3d_core().core
 BACKENDS = ["raycast", "pybullet"]
 CAMERA = CameraIntrinsics(fx=100.0, fy=100.0, cx=47.5, cy=35.5, width=96, height=72)
 HALF = np.array([0.25, 0.3, 0.2])  # box half extents, metres
@@ -160,3 +162,49 @@ def test_pybullet_needs_the_urdf(scenes):
     obj, q, _ = scenes[0]
     with make_backend("pybullet", CAMERA) as bullet, pytest.raises(ValueError, match="urdf"):
         bullet.render(obj, q)
+
+
+class _OffByUlps:
+    """A RaycastingScene whose hit distances are rounded otherwise, as another CPU's
+    SIMD kernel may round them: each one moved a few float32 ulps up or down."""
+
+    def __init__(self, scene, rng: np.random.Generator) -> None:
+        self.scene, self.rng = scene, rng
+
+    def cast_rays(self, rays, nthreads=0):
+        hits = dict(self.scene.cast_rays(rays, nthreads=nthreads))
+        t = hits["t_hit"].numpy()
+        ulps = self.rng.integers(-3, 4, t.shape)
+        moved = np.where(np.isfinite(t), t + ulps * np.spacing(t), t).astype(np.float32)
+        hits["t_hit"] = o3c.Tensor.from_numpy(moved)
+        return hits
+
+
+def test_raycast_depth_does_not_carry_the_ray_casters_rounding(scenes):
+    """Only the choice of triangle comes from Embree: its distances off by a few ulps
+    give the same bytes (the cross-CPU difference that the float64 distance removes)."""
+    with make_backend("raycast", CAMERA) as ray:
+        clean = [ray.render(o, q) for o, q, _ in scenes]
+    rng = np.random.default_rng(0)
+    with make_backend("raycast", CAMERA) as ray:
+        again = []
+        for obj, q, _ in scenes:
+            for group in ray._scenes(obj):
+                if not isinstance(group.scene, _OffByUlps):
+                    group.scene = _OffByUlps(group.scene, rng)
+            again.append(ray.render(obj, q))
+    for a, b in zip(clean, again, strict=True):
+        assert a.depth.tobytes() == b.depth.tobytes()
+        np.testing.assert_array_equal(a.part_mask, b.part_mask)
+
+
+def test_raycast_depth_is_the_rounded_plane_distance():
+    """A face square to the camera at a float32 distance renders at exactly that distance
+    on every pixel it covers."""
+    obj = box_object(np.array([2.2 + HALF[0], 0.1, -0.05]), 0.0)
+    near = np.float32(2.2)
+    with make_backend("raycast", CAMERA) as ray:
+        image = ray.render(obj, np.zeros(0))
+    hit = image.depth > 0
+    assert hit.sum() > 400
+    assert set(np.unique(image.depth[hit]).tolist()) == {float(near)}

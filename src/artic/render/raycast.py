@@ -6,7 +6,14 @@ joints move together) and each group gets one scene, built once per object in th
 group's own frame; an image casts the camera rays, moved into each group's frame at the
 configuration, against each group's scene and keeps the nearest hit. A rigid motion
 keeps ray parameters, and the rays have unit forward (x) component, so the hit
-distance is the depth along the optical axis. Within a group, the geometry id of a hit
+distance is the depth along the optical axis. Only the choice of triangle comes from
+Embree: each hit's distance is computed again in float64 from that triangle's plane and
+the ray (elementwise NumPy arithmetic, the same bits on every CPU) and then rounded to
+float32, because Embree's own float32 distance carries the rounding of whichever SIMD
+kernel it picked for the CPU (one unit in the last place off the correctly rounded
+distance on about a third of a cabinet's pixels here), and the sensor model's disparity
+quantisation turns such an ulp into a whole depth step now and then, so images rendered
+on two CPUs differed (docs/architecture.md). Within a group, the geometry id of a hit
 names the link, i.e. the part id. Only the rays inside the image rectangle bounding a
 group's projected vertices are cast against it (a ray outside cannot hit); when a
 vertex is at or behind the camera plane, every ray is. `render_many` casts the rays of
@@ -53,6 +60,10 @@ class _Group:
     part_ids: NDArray[np.uint8]  # geometry id -> part id + 1 (the mask value); last: 0
     vertices: NDArray[np.float64]  # all vertices, root frame (for the window)
     scene: Any  # Open3D's t.geometry.RaycastingScene
+    #: each triangle's plane n . x = c in the root frame, (n, c) rows, float64 from the
+    #: float32 vertices Embree holds; geometry g's triangles start at row first[g]
+    planes: NDArray[np.float64]
+    first: NDArray[np.int64]
     #: the last single-pose cast and its pose, reused while the group does not move
     last: tuple[NDArray[np.float64], _Hits] | None = None
 
@@ -75,6 +86,51 @@ def rigid_groups(obj: ArticulatedObject) -> list[list[int]]:
     return list(groups.values())
 
 
+def triangle_planes(corners: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(T, 3, 3) triangle corners -> (T, 4) planes (n, c) with n . x = c (n unnormalised:
+    only ratios of it are used), in elementwise float64 arithmetic."""
+    a, b = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    n = np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+                  a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                  a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)  # fmt: skip
+    return np.concatenate([n, _dot(n, corners[:, 0])[:, None]], axis=1)
+
+
+def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Row-wise dot products of (N, 3) arrays (or one row against N), summed in a fixed
+    order: elementwise products and sums are correctly rounded on any CPU, unlike a BLAS
+    or SIMD reduction, whose order and fused multiply-adds depend on the kernel."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def _rotate_back(v: NDArray[np.float64], rotation: NDArray[np.float64]) -> NDArray[np.float64]:
+    """R^T v for each row v of (N, 3) `v`, in `_dot`'s fixed order."""
+    return np.stack([_dot(v, rotation[:, j]) for j in range(3)], axis=1)
+
+
+def _plane_distances(
+    group: _Group,
+    rays: NDArray[np.float64],
+    geometry: NDArray[np.uint32],
+    primitive: NDArray[np.uint32],
+    t_embree: NDArray[np.float32],
+) -> NDArray[np.float32]:
+    """Each ray's distance to the plane of the triangle Embree hit, in float64, rounded
+    to float32 (inf where Embree found none). A ray (nearly) parallel to its triangle,
+    where the plane gives no distance, keeps Embree's."""
+    t = np.full(len(rays), np.inf, dtype=np.float32)
+    hit = np.isfinite(t_embree)
+    if not hit.any():
+        return t
+    plane = group.planes[group.first[geometry[hit]] + primitive[hit]]
+    ray = rays[hit]
+    along = _dot(plane[:, :3], ray[:, 3:])
+    meets = np.abs(along) > 1e-9 * np.sqrt(_dot(plane[:, :3], plane[:, :3]))
+    exact = (plane[:, 3] - _dot(plane[:, :3], ray[:, :3])) / np.where(meets, along, 1.0)
+    t[hit] = np.where(meets, exact, t_embree[hit]).astype(np.float32)
+    return t
+
+
 @register_backend("raycast")
 class RaycastBackend(BackendBase):
     """Open3D ray casting; scenes cached for the most recent object's geometry (its
@@ -85,7 +141,7 @@ class RaycastBackend(BackendBase):
     def __init__(self, camera: CameraIntrinsics, threads: int = 1) -> None:
         self.camera = camera
         self.threads = threads
-        self._directions = camera.ray_directions()
+        self._directions = camera.ray_directions().astype(np.float64)
         self._object: ArticulatedObject | None = None
         self._groups: list[_Group] = []
 
@@ -98,16 +154,18 @@ class RaycastBackend(BackendBase):
         for members in rigid_groups(obj):
             to_root = invert(rest[members[0]])
             scene = o3d.t.geometry.RaycastingScene(nthreads=self.threads)
-            vertices = []
+            vertices, planes = [], []
             for i in members:
                 local = transform_points(to_root @ rest[i], obj.links[i].mesh.vertices)
-                scene.add_triangles(
-                    o3d.core.Tensor(local.astype(np.float32)),
-                    o3d.core.Tensor(obj.links[i].mesh.triangles.astype(np.uint32)),
-                )
+                held = local.astype(np.float32)
+                triangles = obj.links[i].mesh.triangles.astype(np.uint32)
+                scene.add_triangles(o3d.core.Tensor(held), o3d.core.Tensor(triangles))
                 vertices.append(local)
+                planes.append(triangle_planes(held.astype(np.float64)[triangles]))
             part_ids = np.array([*(i + 1 for i in members), 0], dtype=np.uint8)
-            groups.append(_Group(members[0], part_ids, np.concatenate(vertices), scene))
+            first = np.cumsum([0, *(len(p) for p in planes)], dtype=np.int64)
+            groups.append(_Group(members[0], part_ids, np.concatenate(vertices), scene,
+                                 np.concatenate(planes), first))  # fmt: skip
         self._object, self._groups = obj, groups
         return groups
 
@@ -193,19 +251,23 @@ class RaycastBackend(BackendBase):
             window = self._directions[rows, cols]
             shapes.append(window.shape[:2])
             # camera rays in the group frame: origin R^T (0 - t), direction R^T d
-            rays = np.empty((shapes[-1][0] * shapes[-1][1], 6), dtype=np.float32)
-            rays[:, :3] = -(pose[:3, 3] @ pose[:3, :3])
-            np.matmul(window.reshape(-1, 3), pose[:3, :3].astype(np.float32), out=rays[:, 3:])
+            rays = np.empty((shapes[-1][0] * shapes[-1][1], 6), dtype=np.float64)
+            rays[:, :3] = -_rotate_back(pose[:3, 3][None], pose[:3, :3])
+            rays[:, 3:] = _rotate_back(window.reshape(-1, 3), pose[:3, :3])
             chunks.append(rays)
         if sum(len(c) for c in chunks) == 0:
             empty = (np.zeros((0, 0), np.float32), np.zeros((0, 0), np.uint8))
             return [(rows, cols, *empty) for rows, cols, _ in batch]
         every = np.concatenate(chunks)
         threads = self.threads if len(every) >= PARALLEL_RAYS else 1
-        hits = group.scene.cast_rays(o3d.core.Tensor.from_numpy(every), nthreads=threads)
-        t_all = hits["t_hit"].numpy()
+        hits = group.scene.cast_rays(
+            o3d.core.Tensor.from_numpy(every.astype(np.float32)), nthreads=threads
+        )
+        geometry = hits["geometry_ids"].numpy()
+        t_all = _plane_distances(group, every, geometry, hits["primitive_ids"].numpy(),
+                                 hits["t_hit"].numpy())  # fmt: skip
         # misses carry Open3D's invalid id (2^32 - 1): clipped onto part_ids' trailing 0
-        parts_all = np.take(group.part_ids, hits["geometry_ids"].numpy(), mode="clip")
+        parts_all = np.take(group.part_ids, geometry, mode="clip")
         out: list[_Hits] = []
         start = 0
         for (rows, cols, _), shape in zip(batch, shapes, strict=True):
