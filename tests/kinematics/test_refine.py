@@ -33,6 +33,7 @@ from artic.kinematics.refine import (
     Hypothesis,
     PosedRenderer,
     _choose_side,
+    _other_side,
     _ransac,
     depth_residual,
     flap_panel_share,
@@ -81,14 +82,14 @@ def _label(h: Hypothesis, category: str, columns: list[str] = COLUMNS) -> np.nda
 
 
 def _refined(
-    start: Hypothesis, category: str, observed: np.ndarray
+    start: Hypothesis, category: str, observed: np.ndarray, columns: list[str] = COLUMNS
 ) -> tuple[Hypothesis, float, np.ndarray]:
     """`refine_hypothesis` from `start` on `observed`: the hypothesis, its residual and
-    its label (one-door `COLUMNS`)."""
+    its label (in `columns`)."""
     renderer = PosedRenderer(start, category, PARTS, CAMERA)
     try:
         h, residual = refine_hypothesis(start, renderer, observed, CAMERA.ray_directions())
-        return h, residual, renderer.label(h, category, COLUMNS)
+        return h, residual, renderer.label(h, category, columns)
     finally:
         renderer.close()
 
@@ -1213,3 +1214,37 @@ def test_a_side_that_runs_out_of_the_image_gives_no_depth():
     observed = _image(cut, "cabinet")
     assert observed[:, -1].any()  # the side reaches the image's right border
     assert side_depth(dataclasses.replace(cut, depth=0.45), observed, CAMERA) is None
+
+
+@pytest.mark.parametrize("category", ["refrigerator", "cabinet"])
+def test_the_best_candidate_is_tried_on_the_other_side_from_its_own_pose(category):
+    """Closed doors, the truth on one hinge side, the best candidate on the other: from
+    the best's pose the true side fits as well (a closed door's mirror image), so the
+    network's side, the true one, stands (`_choose_side`'s margin) though its own starts
+    had stayed in a worse pose."""
+    if category == "refrigerator":
+        truth, columns = _two_doors(category, 1, (0.0, 0.0)), COLUMNS_2
+    else:
+        truth, columns = _truth(category, 1, 0.0), COLUMNS
+    observed = _image(truth, category)
+    mirrored = truth.mirrored()
+    best_h, best_res, best_label = _refined(mirrored, category, observed, columns)
+    stuck_h = truth.with_pose(truth.x, truth.y, truth.z, truth.yaw + 0.06,
+                              tuple(0.6 for _ in truth.qs))  # fmt: skip
+    stuck = Candidate(0, 0.6, 1, depth_residual(_image(stuck_h, category), observed), True,
+                      _label(stuck_h, category, columns), stuck_h)  # fmt: skip
+    best = Candidate(1, 0.4, -1, best_res, True, best_label, best_h)
+    assert _choose_side([stuck, best], 1, side_weight=1.0) is best  # the stuck side loses
+    lower, upper = _wide(best_label)
+    (other,) = _other_side([stuck, best], observed, CAMERA, category, columns, PARTS,
+                           lower, upper)  # fmt: skip
+    assert other.chirality == 1 and other.inside_interval
+    assert other.residual <= best.residual * 1.05
+    assert _choose_side([stuck, best, other], 1, side_weight=1.0) is other
+    # no side to decide, a door beside a control panel (the other side's is another
+    # front), or no candidate inside the interval: nothing more
+    for other_category in ("drawer", "microwave"):
+        assert _other_side([stuck, best], observed, CAMERA, other_category, columns, PARTS,
+                           lower, upper) == []  # fmt: skip
+    outside = [dataclasses.replace(c, inside_interval=False) for c in (stuck, best)]
+    assert _other_side(outside, observed, CAMERA, category, columns, PARTS, lower, upper) == []

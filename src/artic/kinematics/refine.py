@@ -38,7 +38,8 @@ It runs from the mixture's top components (up to `COMPONENTS`) and, for a catego
 hinge side to decide (`SIDED`), both hinge sides (each component's chirality and the
 other, all else equal; for the top component also its mirror image about the line of
 sight, `Hypothesis.reflected`: a network trained on one side may read an object hinged on
-the other side as that), scores every candidate by
+the other side as that; and the best of these again on the other side from its own pose,
+`_other_side`, so that both sides meet at the best pose found), scores every candidate by
 a robust depth residual (`depth_residual`: the mean over the union of the rendered and
 observed pixels of |rendered - observed| capped at `RESIDUAL_CAP`, a pixel seen in one
 image only counting the cap) and keeps the lowest, on the network's hinge side unless the
@@ -1327,6 +1328,8 @@ def refine(
             estimate, False, f"fallback: the refinement failed ({str(err).splitlines()[0]})",
             math.nan, math.nan, none,
         )  # fmt: skip
+    candidates.extend(_other_side(candidates, observed, camera, category, columns, parts,
+                                  lower, upper))  # fmt: skip
     inside = [c for c in candidates if c.inside_interval]
     if not inside:
         status = f"fallback: no candidate inside the mixture's {INTERVAL_LEVEL:.0%} interval"
@@ -1399,6 +1402,40 @@ def _pick_side(
         named = [c for c in candidates if c.chirality == side]
         best = min(named, key=lambda c: c.residual) if named else best
     return best, named_by
+
+
+def _other_side(
+    candidates: list[Candidate],
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    parts: PartsConfig,
+    lower: Array,
+    upper: Array,
+) -> list[Candidate]:
+    """The lowest-residual candidate inside the interval, refined again from its own pose
+    and q on the other hinge side (`Hypothesis.mirrored`), as one more candidate; [] for a
+    category without a side to decide (`SIDED`) or with no such candidate. The starts of
+    one side can all stay in a worse pose than the other side's best (a door the image
+    shows closed held open, the yaw a few degrees off), and then the other side wins by
+    more than `_choose_side`'s margin though the image cannot tell the sides apart (a
+    closed door's mirror image fits as well); from the same pose both sides meet. Not for
+    a door beside a control panel (`PANEL_BESIDE`): there the other side's door is
+    another front, not the same box's mirror image, and its start from this pose is no
+    better than the others (measured: docs/kinematics.md)."""
+    inside = [c for c in candidates if c.inside_interval and c.hypothesis is not None]
+    if category not in SIDED or category in PANEL_BESIDE or not inside:
+        return []
+    best = min(inside, key=lambda c: c.residual)
+    assert best.hypothesis is not None
+    result = _rounds_from(best.hypothesis.mirrored(), observed, camera, category, columns, parts)
+    if result is None:
+        return []
+    fitted, residual, label = result
+    inside_interval = interval_ok(label, columns, lower, upper, fitted.joint_type)
+    return [Candidate(best.component, best.weight, fitted.chirality, residual, inside_interval,
+                      label, fitted)]  # fmt: skip
 
 
 def _turned(
