@@ -7,18 +7,18 @@ group's own frame; an image casts the camera rays, moved into each group's frame
 configuration, against each group's scene and keeps the nearest hit. A rigid motion
 keeps ray parameters, and the rays have unit forward (x) component, so the hit
 distance is the depth along the optical axis. Only the choice of triangle comes from
-Embree: each hit's distance is computed again in float64 from that triangle's plane and
-the ray (elementwise NumPy arithmetic, the same bits on every CPU) and then rounded to
-float32, because Embree's own float32 distance carries the rounding of whichever SIMD
-kernel it picked for the CPU (one unit in the last place off the correctly rounded
-distance on about a third of a cabinet's pixels here), and the sensor model's disparity
-quantisation turns such an ulp into a whole depth step now and then, so images rendered
-on two CPUs differed (docs/architecture.md). Within a group, the geometry id of a hit
-names the link, i.e. the part id. Only the rays inside the image rectangle bounding a
-group's projected vertices are cast against it (a ray outside cannot hit); when a
-vertex is at or behind the camera plane, every ray is. `render_many` casts the rays of
-all of an object's configurations against a group in one call, and a group that keeps
-its pose (the body) is cast once.
+Embree: each hit's depth is computed again in float64 from that triangle's plane, moved
+into the camera frame, and the pixel's ray (elementwise NumPy arithmetic, the same bits
+on every CPU), then rounded to float32, because Embree's own float32 distance carries
+the rounding of whichever SIMD kernel it picked for the CPU (one unit in the last place
+off the correctly rounded distance on about a third of a cabinet's pixels here), and the
+sensor model's disparity quantisation turns such an ulp into a whole depth step now and
+then, so images rendered on two CPUs differed (docs/architecture.md). Within a group,
+the geometry id of a hit names the link, i.e. the part id. Only the rays inside the
+image rectangle bounding a group's projected vertices are cast against it (a ray outside
+cannot hit); when a vertex is at or behind the camera plane, every ray is. `render_many`
+casts the rays of all of an object's configurations against a group in one call, and a
+group that keeps its pose (the body) is cast once.
 """
 
 from __future__ import annotations
@@ -64,6 +64,7 @@ class _Group:
     #: float32 vertices Embree holds; geometry g's triangles start at row first[g]
     planes: NDArray[np.float64]
     first: NDArray[np.int64]
+    norms: NDArray[np.float64]  # each plane's |n|
     #: the last single-pose cast and its pose, reused while the group does not move
     last: tuple[NDArray[np.float64], _Hits] | None = None
 
@@ -97,37 +98,46 @@ def triangle_planes(corners: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Row-wise dot products of (N, 3) arrays (or one row against N), summed in a fixed
+    """Dot products over the last axis (length 3) of broadcast arrays, summed in a fixed
     order: elementwise products and sums are correctly rounded on any CPU, unlike a BLAS
     or SIMD reduction, whose order and fused multiply-adds depend on the kernel."""
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
-def _rotate_back(v: NDArray[np.float64], rotation: NDArray[np.float64]) -> NDArray[np.float64]:
-    """R^T v for each row v of (N, 3) `v`, in `_dot`'s fixed order."""
-    return np.stack([_dot(v, rotation[:, j]) for j in range(3)], axis=1)
-
-
 def _plane_distances(
     group: _Group,
-    rays: NDArray[np.float64],
+    poses: NDArray[np.float64],
+    pose_of_ray: NDArray[np.int64],
+    across: tuple[NDArray[np.float64], NDArray[np.float64]],
     geometry: NDArray[np.uint32],
     primitive: NDArray[np.uint32],
     t_embree: NDArray[np.float32],
 ) -> NDArray[np.float32]:
-    """Each ray's distance to the plane of the triangle Embree hit, in float64, rounded
-    to float32 (inf where Embree found none). A ray (nearly) parallel to its triangle,
-    where the plane gives no distance, keeps Embree's."""
-    t = np.full(len(rays), np.inf, dtype=np.float32)
-    hit = np.isfinite(t_embree)
-    if not hit.any():
+    """The depth of each camera ray (direction (1, dy, dz); `across`: (dy, dz), float64),
+    cast at the group's pose `poses[pose_of_ray]` ((P, 4, 4) group to camera), on the
+    plane of the triangle Embree hit, in float64 rounded to float32 (inf where Embree
+    found none). The group's triangle planes are moved into the camera frame at each pose
+    (n' = R n, c' = c + n' . t; elementwise, a fixed order) and the depth is c' / (n' . d),
+    computed for the hits only. A ray (nearly) parallel to its triangle keeps Embree's
+    distance."""
+    hit = np.flatnonzero(np.isfinite(t_embree))
+    t = np.full(len(t_embree), np.inf, dtype=np.float32)
+    if len(hit) == 0:
         return t
-    plane = group.planes[group.first[geometry[hit]] + primitive[hit]]
-    ray = rays[hit]
-    along = _dot(plane[:, :3], ray[:, 3:])
-    meets = np.abs(along) > 1e-9 * np.sqrt(_dot(plane[:, :3], plane[:, :3]))
-    exact = (plane[:, 3] - _dot(plane[:, :3], ray[:, :3])) / np.where(meets, along, 1.0)
-    t[hit] = np.where(meets, exact, t_embree[hit]).astype(np.float32)
+    n, rotation, shift = group.planes[None, :, :3], poses[:, None, :3, :3], poses[:, None, :3, 3]
+    nx, ny, nz = (_dot(n, rotation[..., i, :]) for i in range(3))  # (P, T) each
+    offsets = (
+        group.planes[None, :, 3] + (nx * shift[..., 0] + ny * shift[..., 1] + nz * shift[..., 2])
+    ).ravel()
+    normals = (nx.ravel(), ny.ravel(), nz.ravel())
+    limits = np.tile(1e-9 * group.norms, len(poses))  # |n' . d| below: (nearly) parallel
+    index = (pose_of_ray.take(hit) * len(group.planes) + group.first.take(geometry.take(hit))
+             + primitive.take(hit))  # fmt: skip
+    along = (normals[0].take(index) + normals[1].take(index) * across[0].take(hit)
+             + normals[2].take(index) * across[1].take(hit))  # fmt: skip
+    meets = np.abs(along) > limits.take(index)
+    exact = offsets.take(index) / np.where(meets, along, 1.0)
+    t[hit] = np.where(meets, exact, t_embree.take(hit))
     return t
 
 
@@ -141,7 +151,10 @@ class RaycastBackend(BackendBase):
     def __init__(self, camera: CameraIntrinsics, threads: int = 1) -> None:
         self.camera = camera
         self.threads = threads
-        self._directions = camera.ray_directions().astype(np.float64)
+        self._directions = camera.ray_directions()
+        #: each pixel's ray direction's y and z (its x is 1), float64
+        self._across = (self._directions[..., 1].astype(np.float64),
+                        self._directions[..., 2].astype(np.float64))  # fmt: skip
         self._object: ArticulatedObject | None = None
         self._groups: list[_Group] = []
 
@@ -164,8 +177,10 @@ class RaycastBackend(BackendBase):
                 planes.append(triangle_planes(held.astype(np.float64)[triangles]))
             part_ids = np.array([*(i + 1 for i in members), 0], dtype=np.uint8)
             first = np.cumsum([0, *(len(p) for p in planes)], dtype=np.int64)
+            every = np.concatenate(planes)
+            norms = np.sqrt(_dot(every[:, :3], every[:, :3]))
             groups.append(_Group(members[0], part_ids, np.concatenate(vertices), scene,
-                                 np.concatenate(planes), first))  # fmt: skip
+                                 every, first, norms))  # fmt: skip
         self._object, self._groups = obj, groups
         return groups
 
@@ -250,28 +265,35 @@ class RaycastBackend(BackendBase):
         for rows, cols, pose in batch:
             window = self._directions[rows, cols]
             shapes.append(window.shape[:2])
-            # camera rays in the group frame: origin R^T (0 - t), direction R^T d
-            rays = np.empty((shapes[-1][0] * shapes[-1][1], 6), dtype=np.float64)
-            rays[:, :3] = -_rotate_back(pose[:3, 3][None], pose[:3, :3])
-            rays[:, 3:] = _rotate_back(window.reshape(-1, 3), pose[:3, :3])
+            # camera rays in the group frame: origin R^T (0 - t), direction R^T d (float32:
+            # they only choose the triangle, `_plane_distances` gives the distance)
+            rays = np.empty((shapes[-1][0] * shapes[-1][1], 6), dtype=np.float32)
+            rays[:, :3] = -(pose[:3, 3] @ pose[:3, :3])
+            np.matmul(window.reshape(-1, 3), pose[:3, :3].astype(np.float32), out=rays[:, 3:])
             chunks.append(rays)
         if sum(len(c) for c in chunks) == 0:
             empty = (np.zeros((0, 0), np.float32), np.zeros((0, 0), np.uint8))
             return [(rows, cols, *empty) for rows, cols, _ in batch]
         every = np.concatenate(chunks)
         threads = self.threads if len(every) >= PARALLEL_RAYS else 1
-        hits = group.scene.cast_rays(
-            o3d.core.Tensor.from_numpy(every.astype(np.float32)), nthreads=threads
-        )
-        geometry = hits["geometry_ids"].numpy()
-        t_all = _plane_distances(group, every, geometry, hits["primitive_ids"].numpy(),
-                                 hits["t_hit"].numpy())  # fmt: skip
+        hits = group.scene.cast_rays(o3d.core.Tensor.from_numpy(every), nthreads=threads)
+        geometry_all = hits["geometry_ids"].numpy()
+        primitive_all = hits["primitive_ids"].numpy()
+        t_embree = hits["t_hit"].numpy()
         # misses carry Open3D's invalid id (2^32 - 1): clipped onto part_ids' trailing 0
-        parts_all = np.take(group.part_ids, geometry, mode="clip")
+        parts_all = np.take(group.part_ids, geometry_all, mode="clip")
+        sizes = [shape[0] * shape[1] for shape in shapes]
+        dy, dz = (np.concatenate([a[rows, cols].ravel() for rows, cols, _ in batch])
+                  for a in self._across)  # fmt: skip
+        t_all = _plane_distances(
+            group, np.stack([pose for _, _, pose in batch]),
+            np.repeat(np.arange(len(batch)), sizes), (dy, dz),
+            geometry_all, primitive_all, t_embree,
+        )  # fmt: skip
         out: list[_Hits] = []
         start = 0
-        for (rows, cols, _), shape in zip(batch, shapes, strict=True):
-            stop = start + shape[0] * shape[1]
+        for (rows, cols, _), shape, size in zip(batch, shapes, sizes, strict=True):
+            stop = start + size
             t, parts = t_all[start:stop].reshape(shape), parts_all[start:stop].reshape(shape)
             out.append((rows, cols, t, parts))
             start = stop
