@@ -130,12 +130,11 @@ def _plane_distances(
         group.planes[None, :, 3] + (nx * shift[..., 0] + ny * shift[..., 1] + nz * shift[..., 2])
     ).ravel()
     normals = (nx.ravel(), ny.ravel(), nz.ravel())
-    limits = np.tile(1e-9 * group.norms, len(poses))  # |n' . d| below: (nearly) parallel
-    index = (pose_of_ray.take(hit) * len(group.planes) + group.first.take(geometry.take(hit))
-             + primitive.take(hit))  # fmt: skip
+    triangle = group.first.take(geometry.take(hit)) + primitive.take(hit)
+    index = pose_of_ray.take(hit) * len(group.planes) + triangle  # into the (P T,) arrays
     along = (normals[0].take(index) + normals[1].take(index) * across[0].take(hit)
              + normals[2].take(index) * across[1].take(hit))  # fmt: skip
-    meets = np.abs(along) > limits.take(index)
+    meets = np.abs(along) > 1e-9 * group.norms.take(triangle)  # else (nearly) parallel
     exact = offsets.take(index) / np.where(meets, along, 1.0)
     t[hit] = np.where(meets, exact, t_embree.take(hit))
     return t
