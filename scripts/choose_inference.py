@@ -27,7 +27,7 @@ from artic.errors import InputError
 from artic.hierarchy.fit_segmenter import InferenceSearch, choose_inference, validation_scans
 from artic.hierarchy.models import load_segmenter
 
-FIELDS = ("passes", "min_points", "cluster_radius", "mode_bandwidth")
+FIELDS = ("moving_together", "passes", "min_points", "cluster_radius", "mode_bandwidth")
 
 
 def main() -> None:
@@ -41,6 +41,13 @@ def main() -> None:
         "--radii", type=float, nargs="*", default=[0.03, 0.05, 0.08, 0.12, 0.16, 0.2]
     )
     parser.add_argument("--bandwidths", type=float, nargs="*", default=[0.0, 0.03, 0.05, 0.08])
+    parser.add_argument(
+        "--moving-together",
+        choices=["false", "true"],
+        nargs="*",
+        default=["false", "true"],
+        help="inference.moving_together candidates (the first step of the search)",
+    )
     parser.add_argument("--out", type=Path, help="every tried setting's score (JSON)")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -61,7 +68,11 @@ def main() -> None:
     except InputError as err:
         raise SystemExit(f"error: {err}") from None
     search = InferenceSearch(
-        tuple(args.passes), tuple(args.min_points), tuple(args.radii), tuple(args.bandwidths)
+        tuple(args.passes),
+        tuple(args.min_points),
+        tuple(args.radii),
+        tuple(args.bandwidths),
+        tuple(v == "true" for v in args.moving_together),
     )
     chosen, scores = choose_inference(loaded.model, scans, loaded.inference, search)
     saved = next(iter(scores.values()), float("nan"))  # the first scored: the saved settings

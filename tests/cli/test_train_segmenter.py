@@ -172,14 +172,15 @@ def test_votes_head_trains_chooses_its_radius_and_segments(tiny: TinyScans, tmp_
 def test_votes_head_chooses_passes_and_part_size_on_whole_scans(
     tiny: TinyScans, tmp_path: Path
 ) -> None:
-    """`train.select_passes` / `select_min_points`: after the radius search on the prepared
-    clouds, `choose_inference` on the whole validation scans; every tried setting's score is
-    saved with the model, the saved settings are the best of them, and the card says so."""
+    """`train.select_passes` / `select_min_points` / `select_moving_together`: after the
+    radius search on the prepared clouds, `choose_inference` on the whole validation scans;
+    every tried setting's score is saved with the model, the saved settings are the best of
+    them, and the card says so."""
     out = tmp_path / "whole"
     code, _, err = run_cli(
         *ARGS, "model.head=votes", "train.cluster_radii=[0.05,0.2]", "train.select_passes=[1,2]",
-        "train.select_min_points=[2,8]", "train.select_poses=1", f"scans={tiny.scans}",
-        f"out={out}",
+        "train.select_min_points=[2,8]", "train.select_moving_together=[true]",
+        "train.select_poses=1", f"scans={tiny.scans}", f"out={out}",
     )  # fmt: skip
     assert code == 0, err
     loaded = load_segmenter(out / "model.pt", "storage_furniture")
@@ -187,8 +188,13 @@ def test_votes_head_chooses_passes_and_part_size_on_whole_scans(
     s = loaded.inference
     radius = ",".join(f"{r:g}" for r in s.cluster_radius)
     chosen = f"passes={s.passes};min_points={s.min_points};radius={radius};h={s.mode_bandwidth:g}"
+    chosen += ";moving_together" if s.moving_together else ""
     assert scores[chosen] == max(scores.values())
     assert {k.split(";")[0] for k in scores} == {"passes=1", "passes=2"}
+    # the moving types together or apart was the search's first step; the card names it
+    assert {k.endswith(";moving_together") for k in scores} == {False, True}
+    card = (out / "model_card.md").read_text()
+    assert ("the moving types' votes clustered together" in card) == s.moving_together
     assert "on whole validation scans" in (out / "model_card.md").read_text()
 
 

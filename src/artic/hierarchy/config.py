@@ -114,6 +114,12 @@ class InferenceConfig(Strict):
         description="votes head: average the network's outputs on the cloud and on its mirror "
         "image (y -> -y), for a model trained with augment.mirror_y",
     )
+    moving_together: bool = Field(
+        False,
+        description="votes head: cluster the votes of every moving type (rotating, translating, "
+        "both) as one set, so a part whose points the network reads as two moving types "
+        "stays one part (radius: the largest of those types')",
+    )
     passes: int = Field(
         1,
         ge=1,
@@ -168,11 +174,14 @@ class SegmenterTrainConfig(TrainConfig):
     select_passes: tuple[PositiveInt, ...] = Field(
         (),
         description="votes head: inference.passes tried on whole validation scans after the "
-        "radius search, with select_min_points, cluster_radii and mode_bandwidths "
-        "(`choose_inference`); both empty: no such search",
+        "radius search, with select_min_points, select_moving_together, cluster_radii and "
+        "mode_bandwidths (`choose_inference`); all three empty: no such search",
     )
     select_min_points: tuple[NonNegativeInt, ...] = Field(
         (), description="votes head: inference.min_points tried in that search"
+    )
+    select_moving_together: tuple[bool, ...] = Field(
+        (), description="votes head: inference.moving_together tried in that search"
     )
     select_poses: PositiveInt = Field(4, description="poses of each validation object in it")
 

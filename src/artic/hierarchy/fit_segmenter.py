@@ -394,7 +394,12 @@ def choose_cluster_radius(
             return scores[key]
 
         for h in bandwidths or (inference.mode_bandwidth,):
-            moved[:] = [sought(o, h, one_part) if isinstance(o, VoteOutput) else o for o in outputs]
+            moved[:] = [
+                sought(o, h, one_part, inference.moving_together)
+                if isinstance(o, VoteOutput)
+                else o
+                for o in outputs
+            ]
             best: tuple[float, ...] = max(((r,) * 4 for r in radii), key=lambda s: score(s, h))
             for t in types:
                 candidates = [best, *((*best[:t], r, *best[t + 1 :]) for r in radii)]
@@ -494,6 +499,7 @@ class InferenceSearch:
     min_points: tuple[int, ...] = ()
     cluster_radii: tuple[float, ...] = ()
     mode_bandwidths: tuple[float, ...] = ()
+    moving_together: tuple[bool, ...] = ()
 
 
 def choose_inference(
@@ -506,11 +512,12 @@ def choose_inference(
     mode-seeking bandwidth that score the best mean of clean and noisy mAP@0.5 on whole
     `scans`, every point labelled as `segment` labels it (the figure `evaluate hierarchy`
     reports; `choose_cluster_radius` scores the network's samples instead, where a part of
-    a few points still counts whole). A coordinate search from `inference`: passes, then
-    min_points, then each type's radius (not for a type that is one part), then the
-    bandwidth, each candidate with the others kept; ties keep the current value. The
-    network runs once per scan, on as many samples as the most passes tried. Returns the
-    chosen settings and every tried setting's score, keyed by its values."""
+    a few points still counts whole). A coordinate search from `inference`: whether the
+    moving types' votes are clustered together, passes, then min_points, then each type's
+    radius (not for a type that is one part), then the bandwidth, each candidate with the
+    others kept; ties keep the current value. The network runs once per scan, on as many
+    samples as the most passes tried. Returns the chosen settings and every tried
+    setting's score, keyed by its values."""
     from artic.hierarchy.segmentation import merged_passes, network_passes, parts_of_passes
     from artic.progress import progress
 
@@ -527,30 +534,35 @@ def choose_inference(
 
     def key(s: InferenceConfig) -> str:
         radius = ",".join(f"{r:g}" for r in s.cluster_radius)
-        return f"passes={s.passes};min_points={s.min_points};radius={radius};h={s.mode_bandwidth:g}"
+        together = ";moving_together" if s.moving_together else ""
+        return (
+            f"passes={s.passes};min_points={s.min_points};radius={radius};"
+            f"h={s.mode_bandwidth:g}{together}"
+        )
 
     one_part = model.config.one_part
-    moved: dict[tuple[int, float], list[VoteOutput]] = {}
+    moved: dict[tuple[int, float, bool], list[VoteOutput]] = {}
 
-    def votes(passes: int, bandwidth: float) -> list[VoteOutput]:
+    def votes(s: InferenceConfig) -> list[VoteOutput]:
         """Every scan's first `passes` outputs merged and moved to their modes, once for all
         the settings that share them (`votes.sought`)."""
-        if (passes, bandwidth) not in moved:
+        shared = (s.passes, s.mode_bandwidth, s.moving_together)
+        if shared not in moved:
             merged = []
             for scan, (samples, outputs) in zip(scans, runs, strict=True):
-                n = len(samples[:passes])
+                n = len(samples[: s.passes])
                 out = merged_passes(model.config, scan.points, samples[:n], outputs[:n])
-                merged.append(sought(out, bandwidth, one_part))
-            moved.clear()  # one (passes, bandwidth) at a time: the search changes one setting
-            moved[(passes, bandwidth)] = merged
-        return moved[(passes, bandwidth)]
+                merged.append(sought(out, s.mode_bandwidth, one_part, s.moving_together))
+            moved.clear()  # one of these at a time: the search changes one setting
+            moved[shared] = merged
+        return moved[shared]
 
     def score(s: InferenceConfig) -> float:
         k = key(s)
         if k not in scores:
             detections: dict[bool, list[Any]] = {False: [], True: []}
             flat = s.model_copy(update={"mode_bandwidth": 0.0})
-            shifted = votes(s.passes, s.mode_bandwidth)
+            shifted = votes(s)
             for scan, (samples, _), out in zip(scans, runs, shifted, strict=True):
                 n = len(samples[: s.passes])
                 result = parts_of_passes(model.config, scan.points, samples[:n], [out], flat)
@@ -562,6 +574,7 @@ def choose_inference(
         return scores[k]
 
     steps: list[tuple[str, Sequence[Any]]] = [
+        ("moving_together", search.moving_together),
         ("passes", search.passes),
         ("min_points", search.min_points),
         *((f"radius{t}", search.cluster_radii) for t in range(4) if t not in one_part),
@@ -593,6 +606,11 @@ def head_description(model: SegmenterModelConfig, info: dict[str, Any]) -> str:
         f"{info['inference']['cluster_radius']} per motion type, chosen on validation clouds)"
         + (", every static point one part" if network.get("static_part") == "one" else "")
         + (", offsets learnt part by part" if network.get("offset_weight") == "parts" else "")
+        + (
+            ", the moving types' votes clustered together"
+            if info["inference"].get("moving_together")
+            else ""
+        )
     )
 
 
@@ -606,12 +624,18 @@ def select_on_whole_scans(
 ) -> tuple[InferenceConfig, dict[str, float]]:
     """train-segmenter's `choose_inference` on the whole scans (`kinds`, `train.select_poses`
     poses) of its validation `objects`, with the candidates of `train.select_passes`,
-    `select_min_points`, `cluster_radii` and `mode_bandwidths`; `inference` unchanged and
-    no scores when both select lists are empty or the head is the masks head."""
-    if model.config.head != "votes" or not (train.select_passes or train.select_min_points):
+    `select_min_points`, `select_moving_together`, `cluster_radii` and `mode_bandwidths`;
+    `inference` unchanged and no scores when the three select lists are empty or the head
+    is the masks head."""
+    selected = train.select_passes or train.select_min_points or train.select_moving_together
+    if model.config.head != "votes" or not selected:
         return inference, {}
     search = InferenceSearch(
-        train.select_passes, train.select_min_points, train.cluster_radii, train.mode_bandwidths
+        train.select_passes,
+        train.select_min_points,
+        train.cluster_radii,
+        train.mode_bandwidths,
+        train.select_moving_together,
     )
     scans = validation_scans(ds, objects, kinds, train.select_poses)
     return choose_inference(model, scans, inference, search)

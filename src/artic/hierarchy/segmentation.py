@@ -365,7 +365,8 @@ def segment(
        (the largest mask is always kept). Votes head: clusters of the shifted points of all
        samples together, in the first one's frame (`votes.merge_passes`), within
        `cluster_radius`, the same minimum size per sample (`votes.cluster_votes`); with
-       `static_part` "one" the static points are one part.
+       `static_part` "one" the static points are one part; with `moving_together` the
+       votes of every moving type are clustered as one set.
     4. Every input point takes the labels of its nearest sampled point (cKDTree).
 
     Train on clouds prepared the same way (`farthest_point_indices(scan, n_points)`).
@@ -440,7 +441,12 @@ def parts_of_passes(
     )
     if isinstance(out, VoteOutput):
         clusters, motion_prob = vote_parts(
-            out, config.cluster_radius, min_size, network.one_part, config.mode_bandwidth
+            out,
+            config.cluster_radius,
+            min_size,
+            network.one_part,
+            config.mode_bandwidth,
+            config.moving_together,
         )
         label, confidence = clusters.label, clusters.confidence
     else:

@@ -34,6 +34,14 @@ IoU of about 0.5.
   scatter about its centre; two neighbouring parts' scatters touch, and the flood fill
   chains through the contact. Contracted onto their modes, they come apart. The confidence's
   compactness is measured on the moved points.
+- Moving votes together (`inference.moving_together`, structure, not learning): the
+  points of every moving type (rotating, translating, both) are one set for the mode
+  seeking and the flood fill, with the largest of those types' radii. The network's
+  motion type is a per-point guess; where it reads a closed drawer's points half as a
+  door, clustering each type apart cuts the drawer in two however well its votes agree,
+  while two moving parts never share a centre. The part's confidence reads the
+  probability of moving (one minus static) over its points; the points keep their own
+  motion probabilities (the graph network's motion evidence reads them per part).
 - `model.static_part=one` (structure, not learning): in a category whose static points are
   one rigid body (storage furniture: the carcass of every object, from which the doors and
   drawers hang), all points of the static motion type form one part, whatever their
@@ -59,6 +67,8 @@ from artic.objects.tree import MOTION_TYPES
 
 #: the static motion type's index
 STATIC = MOTION_TYPES.index("static")
+#: the first moving type's index: the set every moving vote joins with moving_together
+ROTATING = MOTION_TYPES.index("rotating")
 #: mean-shift steps of `seek_modes`: at the bandwidths chosen (0.05-0.1 cloud radii) the
 #: points have settled by then
 MODE_ITERATIONS = 10
@@ -112,14 +122,41 @@ def seek_modes(
     return y
 
 
+def set_probabilities(
+    motion_prob: NDArray[np.floating], moving_together: bool = False
+) -> NDArray[np.float64]:
+    """The probability (S, K) of each set a point's vote may be clustered in
+    (`cluster_votes`): its motion types' (S, T), or with `moving_together` static's and
+    the moving types' sum (the set numbered as the first moving type, rotating). A point
+    joins its most probable set, so with `moving_together` a point is moving when it is
+    more probably moving than static, whichever moving type it is (module doc)."""
+    prob = np.asarray(motion_prob, dtype=np.float64)
+    if not moving_together:
+        return prob
+    return np.concatenate([prob[:, :ROTATING], prob[:, ROTATING:].sum(1, keepdims=True)], 1)
+
+
+def set_radii(
+    radius: float | Sequence[float], moving_together: bool = False
+) -> NDArray[np.float64]:
+    """The flood-fill radius of each vote set (`set_probabilities`, numbered by motion
+    type): the type's own, or with `moving_together` the largest moving type's for the
+    moving set."""
+    radii = np.array(np.broadcast_to(np.asarray(radius, dtype=np.float64), (len(MOTION_TYPES),)))
+    if moving_together:
+        radii[ROTATING] = radii[STATIC + 1 :].max()
+    return radii
+
+
 def seek_type_modes(
     shifted: NDArray[np.floating],
     motion: NDArray[np.integer],
     bandwidth: float,
     one_part: Collection[int] = (),
 ) -> NDArray[np.float64]:
-    """`shifted` (S, 3) with the points of each motion type (S,) not in `one_part` moved
-    to their modes among that type's points (`seek_modes`); unchanged for bandwidth 0."""
+    """`shifted` (S, 3) with the points of each vote set (S,: a motion type, or the sets of
+    `set_probabilities`) not in `one_part` moved to their modes among that set's points
+    (`seek_modes`); unchanged for bandwidth 0."""
     out = np.array(shifted, dtype=np.float64)
     if bandwidth > 0:
         for t in np.unique(motion):
@@ -259,14 +296,16 @@ def cluster_votes(
     min_size: int,
     one_part: Collection[int] = (),
     bandwidth: float = 0.0,
+    moving_together: bool = False,
 ) -> Clusters:
     """Parts from shifted points (module doc): shifted (S, 3) = point + offset; motion_prob
     (S, T) softmax over motion types; radius: one for all types or one per type; one_part:
     motion types whose points are all one part (no flood fill; confidence: their mean
     probability of that type); bandwidth > 0: the points of each other type seek their
-    modes first (`seek_modes`). Deterministic; every point gets a part."""
-    prob = np.asarray(motion_prob, dtype=np.float64)
-    radii = np.broadcast_to(np.asarray(radius, dtype=np.float64), (prob.shape[1],))
+    modes first (`seek_modes`); moving_together: the moving types' points are one set
+    (`set_probabilities`, `set_radii`). Deterministic; every point gets a part."""
+    prob = set_probabilities(motion_prob, moving_together)
+    radii = set_radii(radius, moving_together)
     motion = prob.argmax(-1)
     shifted = seek_type_modes(shifted, motion, bandwidth, one_part)
     groups: list[NDArray[np.int64]] = []
@@ -303,15 +342,24 @@ def cluster_votes(
     return Clusters(label, confidence)
 
 
-def sought(output: VoteOutput, bandwidth: float, one_part: Collection[int] = ()) -> VoteOutput:
+def sought(
+    output: VoteOutput,
+    bandwidth: float,
+    one_part: Collection[int] = (),
+    moving_together: bool = False,
+) -> VoteOutput:
     """`output` (one cloud) with the offsets that move each point where `cluster_votes`'s
-    mode seeking would (the points of each predicted motion type not in `one_part`), so
-    that clustering it with bandwidth 0 clusters `output` with `bandwidth` (to within
-    float32 rounding): one mean shift for many radii."""
+    mode seeking would (the points of each vote set not in `one_part`), so that clustering
+    it with bandwidth 0 clusters `output` with `bandwidth` (to within float32 rounding):
+    one mean shift for many radii."""
     if bandwidth <= 0:
         return output
     shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
-    motion = output.motion_logits[0].argmax(-1).cpu().numpy()
+    logits = output.motion_logits[0]
+    if moving_together:
+        motion = set_probabilities(logits.softmax(-1).cpu().numpy(), True).argmax(-1)
+    else:
+        motion = logits.argmax(-1).cpu().numpy()
     shifted = seek_type_modes(shifted, motion, bandwidth, one_part)
     moved = torch.from_numpy(shifted).to(output.xyz) - output.xyz[0]
     return output._replace(offsets=moved[None])
@@ -341,8 +389,10 @@ def vote_parts(
     min_size: int,
     one_part: Collection[int] = (),
     bandwidth: float = 0.0,
+    moving_together: bool = False,
 ) -> tuple[Clusters, NDArray[np.float32]]:
     """`cluster_votes` on the first cloud of a batch -> (clusters, motion_prob (S, T))."""
     prob = output.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
     shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
-    return cluster_votes(shifted, prob, radius, min_size, one_part, bandwidth), prob
+    clusters = cluster_votes(shifted, prob, radius, min_size, one_part, bandwidth, moving_together)
+    return clusters, prob
