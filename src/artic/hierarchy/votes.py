@@ -144,7 +144,7 @@ def set_radii(
     moving set."""
     radii = np.array(np.broadcast_to(np.asarray(radius, dtype=np.float64), (len(MOTION_TYPES),)))
     if moving_together:
-        radii[ROTATING] = radii[STATIC + 1 :].max()
+        radii[ROTATING] = radii[ROTATING:].max()
     return radii
 
 
