@@ -203,3 +203,36 @@ def test_mass_properties_are_computed_when_first_read(make_spec: SpecFactory):
         assert copied.inertial.mass == link.inertial.mass
         assert np.array_equal(copied.inertial.inertia, link.inertial.inertia)
         assert np.array_equal(copied.inertial.center_of_mass, link.inertial.center_of_mass)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_an_overlay_drawer_front_covers_the_body_front_and_keeps_the_joint(
+    make_spec: SpecFactory, seed: int
+) -> None:
+    """`parts.drawer_front = "overlay"`: a plate `door_thickness` thick stands in front of
+    the body's front when shut, its back face on it, covering it but `gap` round its edge;
+    the joint (origin, axis, limits) and every other box of the drawer are the inset
+    drawer's, and the handle stands on the plate's face."""
+    spec = make_spec("drawer", seed)
+    p = spec.parts
+    overlay = spec.model_copy(update={"parts": p.model_copy(update={"drawer_front": "overlay"})})
+    inset_obj, overlay_obj = build(spec), build(overlay)
+    (ji,), (jo,) = inset_obj.movable_joints, overlay_obj.movable_joints
+    np.testing.assert_array_equal(ji.origin, jo.origin)
+    np.testing.assert_array_equal(ji.axis, jo.axis)
+    assert ji.limits == jo.limits
+    part = overlay_obj.link_index(jo.child)
+    closed = _object_frame_vertices(overlay_obj, np.zeros(1), part)
+    front = -spec.depth / 2
+    low = [front - p.door_thickness, -spec.width / 2 + p.gap, p.gap]
+    np.testing.assert_allclose(closed.min(axis=0), low, atol=1e-8)
+    high = [spec.width / 2 - p.gap, spec.height - p.gap]
+    np.testing.assert_allclose(closed[:, 1:].max(axis=0), high, atol=1e-8)
+    # nothing of the drawer but the plate lies in front of the body
+    inset_part = _object_frame_vertices(inset_obj, np.zeros(1), part)
+    assert inset_part[:, 0].min() == pytest.approx(front, abs=1e-8)
+    handle = part + 1
+    shift = (_object_frame_vertices(overlay_obj, np.zeros(1), handle)
+             - _object_frame_vertices(inset_obj, np.zeros(1), handle))  # fmt: skip
+    np.testing.assert_allclose(shift, np.tile([-p.door_thickness, 0.0, 0.0], (len(shift), 1)),
+                               atol=1e-8)  # fmt: skip

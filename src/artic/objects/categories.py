@@ -20,6 +20,7 @@ from artic.objects.parts import (
     drawer,
     flap_door,
     lever_arm,
+    overlay_front,
     shell_boxes,
     slide_carriage,
     vertical_door,
@@ -120,7 +121,10 @@ def build_toaster(spec: ObjectSpec) -> ArticulatedObject:
 @register_category("drawer")
 def build_drawer(spec: ObjectSpec) -> ArticulatedObject:
     """A drawer inside the shell opening, front flush with the body front, `gap`
-    clearance to the walls; prismatic along (-1, 0, 0)."""
+    clearance to the walls; prismatic along (-1, 0, 0). With `parts.drawer_front`
+    "overlay", a plate `door_thickness` thick in front of it covers the body's front but
+    `gap` round its edge, its back face on the body's front when shut (the joint origin,
+    as the inset front's front face), the handle on the plate."""
     p = spec.parts
     clear = p.panel_thickness + p.gap
     half = spec.width / 2
@@ -131,6 +135,8 @@ def build_drawer(spec: ObjectSpec) -> ArticulatedObject:
         (-half + clear, half - clear),
         (clear, spec.height - clear),
     )
+    if p.drawer_front == "overlay":
+        part = overlay_front(part, p, (half - p.gap, spec.height / 2 - p.gap))
     return assemble(spec, _shell(spec), [part])
 
 

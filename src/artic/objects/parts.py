@@ -297,6 +297,17 @@ def drawer(
     )
 
 
+def overlay_front(part: MovingPart, parts: PartsConfig, half: tuple[float, float]) -> MovingPart:
+    """`part` (a `drawer`) with an overlay front: a plate `door_thickness` thick in front of
+    its front face (joint frame x in [-thickness, 0]), `half` (y, z) its half extents about
+    the joint origin, the handle moved onto the plate's face. The joint origin stays where
+    it was: the plate's back face when the drawer is shut (the body's front)."""
+    thick = parts.door_thickness
+    plate = Box((-thick, 0.0), (-half[0], half[0]), (-half[1], half[1]))
+    handle = part.handle._replace(position=part.handle.position - np.array([thick, 0.0, 0.0]))
+    return part._replace(boxes=(plate, *part.boxes), handle=handle)
+
+
 def _knob(parts: PartsConfig, face: float) -> HandleMount:
     """A knob at its part's link origin, its long side along z: `handle_length`, capped
     at `handle_fraction` of the part's face (`face` metres square, as bars are capped);

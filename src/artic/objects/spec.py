@@ -119,6 +119,12 @@ class PartsConfig(_Frozen):
     freezer_fraction: float = Field(
         default=1.0 / 3.0, gt=0, lt=1, description="height share of a refrigerator's upper door"
     )
+    drawer_front: Literal["inset", "overlay"] = Field(
+        default="inset",
+        description="a drawer's front: inside the opening, flush with the body front when "
+        "shut (the generator's), or an overlay front over the whole body front, its back face "
+        "on the body front when shut (the refinement's second reading, docs/kinematics.md)",
+    )
 
 
 class CategoryConfig(_Frozen):
