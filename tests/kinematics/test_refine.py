@@ -385,6 +385,70 @@ def test_refine_a_drawer_from_the_networks_mixture():
     assert abs(result.label[COLUMNS.index("j0_q")] - truth.qs[0]) < 0.005
 
 
+OVERLAY = PARTS.model_copy(update={"drawer_front": "overlay"})
+
+
+@pytest.mark.parametrize(("yaw", "q"), [(0.3, 0.2), (-0.2, 0.08), (0.0, 0.3)])
+@pytest.mark.parametrize("front", ["inset", "overlay"])
+def test_a_drawer_is_read_with_the_front_it_has(yaw, q, front):
+    """A drawer with an overlay front (`PartsConfig.drawer_front`), under the sensor's
+    noise, from a network a few centimetres off that reads it as the generator's inset
+    front does (open by the front's thickness more, and 4 cm too wide: the plate looks
+    like a wider inset front):
+    the refinement reads it with an overlay front, the width the plate shows, and the
+    opening and axis of its label. An inset drawer read right keeps the inset front
+    (`_overlay_front`; a drawer's sizes are otherwise the network's)."""
+    truth = _drawer(yaw, q)
+    parts = OVERLAY if front == "overlay" else PARTS
+    observed = apply_sensor_noise(_image_with(truth, "drawer", parts), SensorNoiseConfig(),
+                                  np.random.default_rng(0), image_fx=CAMERA.fx)  # fmt: skip
+    ahead, wider = (PARTS.door_thickness, 0.04) if front == "overlay" else (0.0, 0.0)
+    guess = dataclasses.replace(truth.with_pose(truth.x - 0.03, truth.y + 0.02, truth.z,
+                                                truth.yaw - 0.04, (q + ahead - 0.03,)),
+                                width=truth.width + wider)  # fmt: skip
+    estimate = _label(guess, "drawer")
+    result = refine(observed, CAMERA, "drawer", COLUMNS, estimate, np.array([1.0]),
+                    estimate[None], *_wide(estimate))  # fmt: skip
+    assert result.refined, result.status
+    assert ("overlay front" in result.status) == (front == "overlay"), result.status
+    true_label = _label_with(truth, "drawer", parts)
+    assert abs(result.label[COLUMNS.index("j0_q")] - q) < 0.01
+    assert np.linalg.norm(_origin(result.label) - _origin(true_label)) < 0.015
+
+
+def test_an_overlay_reading_is_judged_by_the_interval_when_no_inset_one_passes():
+    """An overlay drawer open 20 cm whose inset readings (open by the front's thickness
+    more) all lie beyond the mixture's interval on q: before falling back, the overlay
+    reading of the closest fit is judged by the same interval, and it passes."""
+    truth, q = _drawer(0.3, 0.2), 0.2
+    observed = _image_with(truth, "drawer", OVERLAY)
+    guess = truth.with_pose(truth.x - 0.03, truth.y + 0.02, truth.z, truth.yaw - 0.04,
+                            (q + PARTS.door_thickness,))  # fmt: skip
+    estimate = _label(guess, "drawer")
+    lower, upper = _wide(estimate)
+    i = COLUMNS.index("j0_q")
+    # widened by INTERVAL_MARGIN_M: [q - 0.065, q + 0.005]
+    lower[i], upper[i] = q - 0.035, q - 0.025
+    result = refine(observed, CAMERA, "drawer", COLUMNS, estimate, np.array([1.0]),
+                    estimate[None], lower, upper)  # fmt: skip
+    assert not any(c.inside_interval for c in result.candidates)
+    assert result.refined and "overlay front" in result.status, result.status
+    assert abs(result.label[i] - q) < 0.005
+
+
+def _image_with(h: Hypothesis, category: str, parts: PartsConfig) -> np.ndarray:
+    with make_backend("raycast", CAMERA) as backend:
+        return backend.render(build(h.spec(category, parts)), np.array(h.qs)).depth
+
+
+def _label_with(h: Hypothesis, category: str, parts: PartsConfig) -> np.ndarray:
+    renderer = PosedRenderer(h, category, parts, CAMERA)
+    try:
+        return renderer.label(h, category, COLUMNS)
+    finally:
+        renderer.close()
+
+
 @pytest.mark.parametrize("category", ["drawer", "microwave"])
 def test_the_refinement_does_not_depend_on_its_ray_casting_threads(category):
     """`refine(..., threads=2)` (what `artic predict` uses on this machine) gives the same
