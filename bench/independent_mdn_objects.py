@@ -42,9 +42,10 @@ place): `images/NNNNNN.png` (depth, 16-bit millimetres), `camera.json` (the six
 intrinsics and a `frame_id`, as ROS tools add), `labels.csv` (per image: object, side and
 artic's label vector), `objects.jsonl` (each object's spec), `errors.csv` (per image:
 axis-position error cm as `artic.evaluation.kinematics.kinematic_errors` defines it,
-yaw error deg, configuration error deg, hinge side right, whether predict warned and its
-warnings) and `summary.csv` (`SUMMARY_COLUMNS`: one row per side present, and "both" when
-both are or the category has no hinge side); prints the summary. Same seed, same bytes
+yaw error deg, configuration error deg, the rotation error in the thesis' metric deg,
+hinge side right, whether predict warned and its warnings) and `summary.csv`
+(`SUMMARY_COLUMNS`: one row per side present, and "both" when both are or the category
+has no hinge side); prints the summary. Same seed, same bytes
 (images, labels, objects): object i is drawn from `default_rng([seed, i, STREAM])`, its
 sensor noise from `[seed, i, STREAM, 1]`.
 
@@ -257,6 +258,7 @@ ERROR_COLUMNS: Final = (
     "axis_position_cm",
     "yaw_deg",
     "configuration_deg",
+    "rotation_thesis_deg",
     "hinge_side_right",
     "warned",
     "warnings",
@@ -1524,6 +1526,7 @@ class Score(NamedTuple):
     axis_position_cm: float
     yaw_deg: float
     configuration_deg: float
+    rotation_thesis_deg: float
     hinge_side_right: bool
     warned: bool
     warnings: list[str]
@@ -1549,6 +1552,7 @@ def score(result: dict[str, Any], labels: dict[str, float], category: str = "mic
         axis_position_cm=float(errors["position_cm"][0]),
         yaw_deg=float(errors["rotation_deg"][0]),
         configuration_deg=float(errors["configuration"][0]),
+        rotation_thesis_deg=float(errors["rotation_thesis_deg"][0]),
         hinge_side_right=bool(errors["hinge_side_wrong_pct"][0] == 0),
         warned=any(w.startswith(ESTIMATE_WARNINGS) for w in warnings),
         warnings=warnings,
@@ -1713,7 +1717,8 @@ def run(
                 scored.append((side, s))
                 error_rows.append([
                     i, i, side, spec.chirality, s.chirality_estimate, s.axis_position_cm,
-                    s.yaw_deg, s.configuration_deg, int(s.hinge_side_right), int(s.warned),
+                    s.yaw_deg, s.configuration_deg, s.rotation_thesis_deg,
+                    int(s.hinge_side_right), int(s.warned),
                     " | ".join(s.warnings),
                 ])  # fmt: skip
         write_csv(tmp / "labels.csv", ["image", "object_id", "side", *columns], label_rows)

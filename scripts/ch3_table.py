@@ -1,9 +1,10 @@
 """Collect `artic evaluate mdn` reports into docs/results/ch3/table_3_1.csv (issue 19).
 
-    python scripts/ch3_table.py R/cabinet R/cabinet_grid R/drawer ... \
+    python scripts/ch3_table.py R/cabinet R/cabinet_grid R/drawer B/drawer ... \
         --out docs/results/ch3/table_3_1.csv
 
-Each argument is an evaluate-mdn output folder. Its rows, in the issue's columns
+Each argument is an evaluate-mdn output folder or a bench/independent_mdn_objects.py
+output folder (below). An evaluate-mdn folder's rows, in the issue's columns
 (`COLUMNS`): the category (the report's category name), the data (`continuous` or
 `thesis_grid`: the `render.sampling` of the depth folder the report evaluated, read from
 that folder's manifest), the estimator (Mean -> mean, NN -> nn, ICP -> icp, Ours ->
@@ -12,7 +13,15 @@ the mean errors (configuration in deg, the drawer's in cm) and, for the network 
 refined estimate, the coverage of their 90% intervals over all predicted columns
 (`calibration.csv`, `calibration_refined.csv`; none for a report without the latter).
 Rows already in `--out` for other (category, data) pairs are kept; a report replaces the
-rows of its own pair. Rows are sorted by category, data and estimator.
+rows of its own pair.
+
+A bench/independent_mdn_objects.py folder (its `objects.jsonl` tells it apart) gives one
+row of data `independent`: the estimator its summary names (network with `--no-refine`,
+else refined), the means over its errors.csv's images (both hinge sides; the rotation in
+the thesis' metric as `kinematic_errors` computes it; the hinge side wrong on the share
+of images not `hinge_side_right`), no coverage (the bench forms no intervals). It
+replaces that one (category, independent, estimator) row. Rows are sorted by category,
+data and estimator.
 """
 
 from __future__ import annotations
@@ -36,7 +45,9 @@ DATA = ["continuous", "thesis_grid", "independent"]
 
 
 def report_rows(folder: Path) -> list[dict[str, str]]:
-    """The Table 3.1 rows of one evaluate-mdn output folder (module docstring)."""
+    """The Table 3.1 rows of one evaluate-mdn or bench output folder (module docstring)."""
+    if (folder / "objects.jsonl").is_file():
+        return [bench_row(folder)]
     manifest = read_manifest(folder, expected_stage="evaluate-mdn")
     category = str(manifest.config["category"]["name"])
     depth = read_manifest(input_folder(folder, manifest, "depth"), expected_stage="render-depth")
@@ -64,6 +75,30 @@ def report_rows(folder: Path) -> list[dict[str, str]]:
     return rows
 
 
+def bench_row(folder: Path) -> dict[str, str]:
+    """The `independent` row of one bench/independent_mdn_objects.py output folder."""
+    with (folder / "summary.csv").open(newline="") as f:
+        summary = list(csv.DictReader(f))
+    with (folder / "errors.csv").open(newline="") as f:
+        errors = list(csv.DictReader(f))
+    if not summary or not errors:
+        raise SystemExit(f"{folder}: an empty bench output")
+
+    def mean(column: str) -> str:
+        return f"{sum(float(r[column]) for r in errors) / len(errors):.2f}"
+
+    wrong = 100.0 * sum(r["hinge_side_right"] == "0" for r in errors) / len(errors)
+    return {
+        "category": summary[0]["category"], "data": "independent",
+        "estimator": ESTIMATORS[summary[0]["estimator"]],
+        "axis_position_cm": mean("axis_position_cm"),
+        "configuration": mean("configuration_deg"),
+        "rotation_thesis_deg": mean("rotation_thesis_deg"),
+        "yaw_deg": mean("yaw_deg"), "hinge_side_wrong_pct": f"{wrong:.2f}",
+        "coverage_90_pct": "",
+    }  # fmt: skip
+
+
 def _coverage(path: Path) -> dict[float, float]:
     """nominal level -> coverage over all predicted columns, of a calibration csv (none
     when the file is absent: a report from before the refined intervals)."""
@@ -86,21 +121,30 @@ def _key(row: dict[str, str]) -> tuple[int, int, int]:
 
 
 def merge(existing: list[dict[str, str]], reports: list[Path]) -> list[dict[str, str]]:
-    """`existing` rows with each report's (category, data) pair replaced by its rows."""
+    """`existing` rows with each report's (category, data) pair replaced by its rows (a
+    bench folder's: its one (category, data, estimator) row)."""
     new: list[dict[str, str]] = []
     for folder in reports:
         new += report_rows(folder)
-    pairs = {(r["category"], r["data"]) for r in new}
-    seen = {(r["category"], r["data"], r["estimator"]) for r in new}
-    if len(seen) != len(new):
+    cells = {(r["category"], r["data"], r["estimator"]) for r in new}
+    if len(cells) != len(new):
         raise SystemExit("two reports evaluate the same category on the same data")
-    kept = [r for r in existing if (r["category"], r["data"]) not in pairs]
+    pairs = {(r["category"], r["data"]) for r in new if r["data"] != "independent"}
+
+    def replaced(r: dict[str, str]) -> bool:
+        return (r["category"], r["data"]) in pairs or (
+            r["category"], r["data"], r["estimator"]) in cells  # fmt: skip
+
+    kept = [r for r in existing if not replaced(r)]
     return sorted(kept + new, key=_key)
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("reports", type=Path, nargs="+", help="evaluate-mdn output folders")
+    parser.add_argument(
+        "reports", type=Path, nargs="+",
+        help="evaluate-mdn or bench/independent_mdn_objects.py output folders",
+    )  # fmt: skip
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args(argv)
     existing: list[dict[str, str]] = []

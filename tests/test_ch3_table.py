@@ -56,3 +56,47 @@ def test_rows_in_the_issues_columns_merged_by_category_and_data(tiny_model, tiny
     # the same report twice is refused: two answers for one cell
     with pytest.raises(SystemExit, match="same category"):
         ch3_table.main([str(report), str(report), "--out", str(out)])
+
+
+def _bench_folder(path: Path, estimator: str, axis: list[float], right: list[int]) -> Path:
+    """A bench/independent_mdn_objects.py output folder with these images' errors."""
+    path.mkdir()
+    (path / "objects.jsonl").write_text('{"category": "cabinet"}\n')
+    (path / "summary.csv").write_text(
+        "category,sides,sizes,placement,estimator,images\n"
+        f"cabinet,both,table_a1,frame,{estimator},{len(axis)}\n"
+    )
+    lines = ["image,axis_position_cm,yaw_deg,configuration_deg,rotation_thesis_deg,"
+             "hinge_side_right"]  # fmt: skip
+    rows = enumerate(zip(axis, right, strict=True))
+    lines += [f"{i},{a},1.0,{2 * a},0.5,{r}" for i, (a, r) in rows]
+    (path / "errors.csv").write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_bench_folder_gives_its_one_independent_row(tmp_path):
+    """A second-generator bench folder: one `independent` row of its estimator, the means
+    over its images, the hinge side wrong on the share not right, no coverage; it
+    replaces that cell only (the other estimator's independent row and every other row
+    stay)."""
+    ch3_table = _script()
+    out = tmp_path / "table.csv"
+    other = dict.fromkeys(ch3_table.COLUMNS, "9.00")
+    other.update(category="cabinet", data="independent", estimator="network")
+    stale = {**other, "estimator": "refined"}
+    continuous = {**other, "data": "continuous"}
+    with out.open("w", newline="") as f:
+        writer = csv.DictWriter(f, ch3_table.COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows([continuous, other, stale])
+    bench = _bench_folder(tmp_path / "bench", "Ours + refinement", [1.0, 2.0, 6.0], [1, 1, 0])
+    ch3_table.main([str(bench), "--out", str(out)])
+    with out.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert rows[:2] == [continuous, other]
+    assert rows[2] == {
+        "category": "cabinet", "data": "independent", "estimator": "refined",
+        "axis_position_cm": "3.00", "configuration": "6.00", "rotation_thesis_deg": "0.50",
+        "yaw_deg": "1.00", "hinge_side_wrong_pct": "33.33", "coverage_90_pct": "",
+    }  # fmt: skip
+    assert len(rows) == 3

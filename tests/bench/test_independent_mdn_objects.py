@@ -329,8 +329,9 @@ def test_tiny_end_to_end_writes_both_csvs(
     assert tuple(errors[0]) == bench.ERROR_COLUMNS
     assert [r[2] for r in errors[1:]] == ["right", "left"]
     for row in errors[1:]:
-        assert float(row[5]) >= 0 and row[8] in ("0", "1") and row[9] in ("0", "1")
-        assert "not the training camera" in row[10]  # reprojected, as predict does
+        assert float(row[5]) >= 0 and float(row[8]) >= 0
+        assert row[9] in ("0", "1") and row[10] in ("0", "1")
+        assert "not the training camera" in row[11]  # reprojected, as predict does
     summary = read_csv(out / "summary.csv")
     assert tuple(summary[0]) == bench.SUMMARY_COLUMNS
     assert [r[1] for r in summary[1:]] == ["right", "left", "both"]
@@ -405,7 +406,7 @@ def test_tiny_end_to_end_new_categories(bench: ModuleType, category: str, tmp_pa
     errors = read_csv(out / "errors.csv")
     assert tuple(errors[0]) == bench.ERROR_COLUMNS
     assert [r[2] for r in errors[1:]] == ["right" if category == "refrigerator" else "none"]
-    assert float(errors[1][5]) >= 0 and errors[1][8] in ("0", "1")
+    assert float(errors[1][5]) >= 0 and errors[1][9] in ("0", "1")
     summary = read_csv(out / "summary.csv")
     assert tuple(summary[0]) == bench.SUMMARY_COLUMNS
     expected_sides = ["right"] if category == "refrigerator" else ["both"]
