@@ -1349,12 +1349,13 @@ def refine(
                                   lower, upper))  # fmt: skip
     inside = [c for c in candidates if c.inside_interval]
     overlay = False
-    if not inside and network.joint_type == "prismatic":
-        # the overlay reading of the closest fit, judged by the same interval
-        nearest = min(candidates, key=lambda c: c.residual)
+    if network.joint_type == "prismatic":
+        # the overlay reading of the closest fit inside the interval (what `_pick_side`
+        # keeps of a drawer's one side), or of all when none is: judged by the same interval
+        nearest = min(inside or candidates, key=lambda c: c.residual)
         read, overlay = _overlay_front(nearest, observed, camera, category, columns, parts,
                                        lower, upper)  # fmt: skip
-        inside = [read] if overlay else []
+        inside = [read] if overlay else inside
     if not inside:
         status = f"fallback: no candidate inside the mixture's {INTERVAL_LEVEL:.0%} interval"
         return Refinement(estimate, False, status, residual_network, residual_network,
@@ -1365,9 +1366,6 @@ def refine(
         columns, category, parts, (image, view), (observed, camera),
     )  # fmt: skip
     best = _refit_sizes(best, observed, camera, category, columns, parts, lower, upper)
-    if not overlay:
-        best, overlay = _overlay_front(best, observed, camera, category, columns, parts,
-                                       lower, upper)  # fmt: skip
     # a quarter turn, when no test found a front's features on the chosen front
     turned = [] if named_by else _turned(best, observed, camera, category, columns, parts,
                                          lower, upper)  # fmt: skip
@@ -1602,7 +1600,7 @@ def _overlay_front(
     lower: Array,
     upper: Array,
 ) -> tuple[Candidate, bool]:
-    """The chosen drawer candidate read again with an overlay front
+    """A drawer candidate (`refine`: its closest fit) read again with an overlay front
     (`PartsConfig.drawer_front`: a plate over the whole body front, its back face on the
     body's front when shut), and whether that reading replaced it (`_refit`: a lower depth
     residual, its yaw and q inside the mixture's interval). It starts from the same pose
@@ -1614,7 +1612,7 @@ def _overlay_front(
     too little), centred on it: the body is the carcass the plate covers, a plinth, legs
     or a top slab beyond it not part of the box model."""
     h = best.hypothesis
-    if h is None or h.joint_type != "prismatic" or parts.drawer_front == "overlay":
+    if h is None or parts.drawer_front == "overlay":
         return best, False
     overlay = parts.model_copy(update={"drawer_front": "overlay"})
     start = dataclasses.replace(h, qs=(max(h.qs[0] - parts.door_thickness, 0.0),))
