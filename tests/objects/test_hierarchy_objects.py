@@ -110,6 +110,36 @@ def test_storage_furniture_counts_of_drawers_and_doors_vary(
     assert len(counts) >= 4
 
 
+def test_aligned_layouts_stack_compartments_in_columns(
+    configs: dict[str, StructureConfig],
+) -> None:
+    """`layout.aligned`: every row takes the bottom row's column widths; with
+    `uniform_row` = 1 each column holds one kind (a stack of drawers, say); at 0 the rows
+    split on their own (so, over seeds, some object has rows of different splits)."""
+    base = configs["storage_furniture"]
+
+    def variant(aligned: float, uniform: float) -> StructureConfig:
+        layout = base.layout.model_copy(update={"aligned": aligned, "uniform_row": uniform})
+        return base.model_copy(update={"layout": layout})
+
+    stacked, free = variant(1.0, 1.0), variant(0.0, 0.0)
+    stacks = 0
+    for seed in SEEDS:
+        spec = sample_structure(stacked, seed, np.random.default_rng(seed))
+        widths = [tuple(c.width for c in row.compartments) for row in spec.rows]
+        assert all(w == widths[0] for w in widths)
+        for j in range(len(widths[0])):
+            assert len({row.compartments[j].content for row in spec.rows}) == 1
+        stacks += len(spec.rows) > 1
+        build_structure(spec)  # geometry and joints still valid
+    assert stacks >= 3
+    splits = [
+        len({len(r.compartments) for r in sample_structure(free, s, np.random.default_rng(s)).rows})
+        for s in SEEDS
+    ]
+    assert max(splits) > 1
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_every_tree_is_valid_with_a_single_root(
     configs: dict[str, StructureConfig], name: str

@@ -59,6 +59,14 @@ class LayoutConfig(_Frozen):
     uniform_row: float = Field(
         0.5, ge=0, le=1, description="probability that all compartments of a row hold the same"
     )
+    aligned: float = Field(
+        0.0,
+        ge=0,
+        le=1,
+        description="probability that every row shares the bottom row's column split, so "
+        "compartments stack in columns (a chest of drawers, a hat-box door over a tall one); "
+        "contents are then drawn per column and `uniform_row` makes a column uniform",
+    )
     double_door_min_width: float = Field(
         0.4, gt=0, description="narrower compartments get a single door instead, m"
     )
@@ -183,9 +191,11 @@ def sample_storage_furniture(
     cfg: StorageFurnitureConfig, index: int, rng: np.random.Generator
 ) -> StorageFurnitureSpec:
     """Draw one object: dimensions (uniform), row count and heights, per row the
-    compartment count, widths and contents. Contents are redrawn (at most
-    `MAX_CONTENT_TRIES` times) until some compartment moves; then the first becomes a
-    drawer. Only `rng` is used."""
+    compartment count and widths (with probability `layout.aligned` the bottom row's for
+    every row: columns of stacked compartments, whose contents are then drawn per column
+    rather than per row, `uniform_row` making a column uniform), and contents. Contents
+    are redrawn (at most `MAX_CONTENT_TRIES` times) until some compartment moves; then the
+    first becomes a drawer. Only `rng` is used."""
     depth, width, height = (
         float(rng.uniform(*r))
         for r in (cfg.geometry.depth, cfg.geometry.width, cfg.geometry.height)
@@ -194,12 +204,21 @@ def sample_storage_furniture(
     inner_h, inner_w = height - 2 * wall, width - 2 * wall
     n_rows = _count(rng, cfg.layout.rows, inner_h, cfg)
     heights = _split(rng, inner_h - (n_rows - 1) * wall, n_rows, smallest)
-    layout = []
+    aligned = cfg.layout.aligned > 0 and bool(rng.random() < cfg.layout.aligned)
+    layout: list[tuple[float, list[float]]] = []
     for row_height in heights:
+        if aligned and layout:
+            layout.append((row_height, layout[0][1]))
+            continue
         n_cols = _count(rng, cfg.layout.columns, inner_w, cfg)
         layout.append((row_height, _split(rng, inner_w - (n_cols - 1) * wall, n_cols, smallest)))
     for _ in range(MAX_CONTENT_TRIES):
-        rows = [Row(height=h, compartments=tuple(_contents(rng, w, cfg))) for h, w in layout]
+        if aligned:  # contents drawn per column, so a column can be uniform (a stack)
+            columns = [_contents(rng, [w] * len(layout), cfg) for w in layout[0][1]]
+            cells = [tuple(column[r] for column in columns) for r in range(len(layout))]
+        else:
+            cells = [tuple(_contents(rng, w, cfg)) for _, w in layout]
+        rows = [Row(height=h, compartments=c) for (h, _), c in zip(layout, cells, strict=True)]
         if any(c.content != "empty" for row in rows for c in row.compartments):
             break
     else:
