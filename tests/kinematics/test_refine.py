@@ -42,6 +42,7 @@ from artic.kinematics.refine import (
     front_side,
     handle_position,
     handle_side,
+    mirror_label,
     panel_side,
     refine,
     refine_hypothesis,
@@ -534,6 +535,44 @@ def test_an_interval_that_excludes_every_fit_falls_back_and_says_why():
     assert "interval" in result.status
     assert not any(c.inside_interval for c in result.candidates)
     np.testing.assert_array_equal(result.label, estimate)
+
+
+def test_a_one_sided_network_judges_the_other_side_by_its_mirror_image():
+    """A network trained on one hinge side (every component +1) reads an object hinged on
+    the other side as its mirror image: the yaw reflected about the line of sight. A -1
+    candidate is inside the interval when it or its mirror image is; the -1 truth is found
+    when the network's reading is that mirror image, and is not taken when the network's
+    interval rules out both (the network read something else)."""
+    truth = _truth("cabinet", -1, 0.7, yaw=0.3)
+    observed = _image(truth, "cabinet")
+    mirror = mirror_label(_label(truth, "cabinet"), truth, COLUMNS)
+    bearing = math.atan2(truth.y, truth.x)
+    assert mirror[COLUMNS.index("pose_yaw")] == pytest.approx(2 * bearing - truth.yaw)
+    yaw, q = COLUMNS.index("pose_yaw"), COLUMNS.index("j0_q")
+
+    def tight(estimate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Wide but for the yaw (3 deg) and the q (0.1 rad)."""
+        lower, upper = _wide(estimate)
+        lower[yaw], upper[yaw] = estimate[yaw] - math.radians(3), estimate[yaw] + math.radians(3)
+        lower[q], upper[q] = estimate[q] - 0.1, estimate[q] + 0.1
+        return lower, upper
+
+    reading = truth.mirrored().with_pose(truth.x, truth.y, truth.z, 2 * bearing - truth.yaw,
+                                        truth.qs)  # fmt: skip
+    elsewhere = truth.mirrored().with_pose(truth.x, truth.y, truth.z, truth.yaw + 0.3, truth.qs)
+    for estimate, found in ((_label(reading, "cabinet"), True),
+                            (_label(elsewhere, "cabinet"), False)):  # fmt: skip
+        result = refine(observed, CAMERA, "cabinet", COLUMNS, estimate, np.array([1.0]),
+                        estimate[None], *tight(estimate))  # fmt: skip
+        lower, upper = tight(estimate)
+        for c in (c for c in result.candidates if not c.turned):
+            reads = [c.label] + ([mirror_label(c.label, c.hypothesis, COLUMNS)]
+                                 if c.chirality == -1 else [])  # fmt: skip
+            inside = any(lower[yaw] - math.radians(5) <= r[yaw] <= upper[yaw] + math.radians(5)
+                         for r in reads)  # fmt: skip
+            assert c.inside_interval <= inside
+        on_truth = np.linalg.norm(_origin(result.label) - _origin(_label(truth, "cabinet"))) < 0.01
+        assert (result.label[COLUMNS.index("chirality")] == -1 and on_truth) == found, result.status
 
 
 def test_a_door_the_network_reads_as_closed_takes_the_images_opening():

@@ -47,8 +47,10 @@ image only counting the cap) and keeps the lowest, on the network's hinge side u
 other side's is lower by more than `SIDE_MARGIN` (`_choose_side`). It falls back to the
 network's estimate, and says why in `Refinement.status`, when no candidate's yaw and q
 lie inside the mixture's interval (`interval_ok`; a candidate on a hinge side that no
-component mean has, as with a model trained on one side, has no interval there and is
-judged by its residual alone), or when the chosen candidate's residual is not below the
+component mean has, as with a model trained on one side, may have its mirror image
+inside instead, `judged_ok`: such a network reads an object hinged on the other side as
+its mirror image; until 2026-12-06 such a candidate was judged by its residual alone), or when
+the chosen candidate's residual is not below the
 network's own: the returned estimate's residual is never larger than the network's.
 The chosen door candidate then has its width fitted too, and then its depth (`_refit_sizes`:
 the width as below, the depth off the far edge of the side in view, `side_depth`; one more
@@ -130,7 +132,7 @@ import dataclasses
 import functools
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -1288,6 +1290,40 @@ def interval_ok(
     return True
 
 
+def mirror_label(label: Array, h: Hypothesis, columns: list[str]) -> Array:
+    """`label` (of `h`) as a network trained on the other hinge side reads it: its yaw
+    reflected about the line of sight (`Hypothesis.reflected`), the rest as it is (what
+    `interval_ok` reads of it, the q, a mirror image keeps)."""
+    read = np.array(label, dtype=np.float64)
+    read[columns.index("pose_yaw")] = _wrap(h.reflected().yaw)
+    return read
+
+
+def covered_sides(means: Array, columns: list[str]) -> frozenset[int]:
+    """The hinge sides the mixture's component `means` (m, L) put weight on."""
+    chirality = np.asarray(means)[:, columns.index("chirality")]
+    return frozenset(1 if c >= 0 else -1 for c in chirality.tolist())
+
+
+def judged_ok(
+    label: Array,
+    h: Hypothesis,
+    covered: Collection[int],
+    columns: list[str],
+    lower: Array,
+    upper: Array,
+) -> bool:
+    """`interval_ok` of the candidate `h` (its `label`); on a side the mixture never puts
+    weight on (not in `covered`), of the candidate or of its mirror image (`mirror_label`):
+    a network trained on the other side reads such an object as its mirror image, or, where
+    the image does not show the side (a closed door), as itself on its own side."""
+    if interval_ok(label, columns, lower, upper, h.joint_type):
+        return True
+    return h.chirality not in covered and interval_ok(
+        mirror_label(label, h, columns), columns, lower, upper, h.joint_type
+    )
+
+
 def refine(
     observed: NDArray[np.floating],
     camera: CameraIntrinsics,
@@ -1346,7 +1382,7 @@ def refine(
             math.nan, math.nan, none,
         )  # fmt: skip
     candidates.extend(_other_side(candidates, observed, camera, category, columns, parts,
-                                  lower, upper))  # fmt: skip
+                                  lower, upper, covered_sides(means, columns)))  # fmt: skip
     inside = [c for c in candidates if c.inside_interval]
     overlay = False
     if network.joint_type == "prismatic":
@@ -1440,9 +1476,11 @@ def _other_side(
     parts: PartsConfig,
     lower: Array,
     upper: Array,
+    covered: Collection[int] = (1, -1),
 ) -> list[Candidate]:
     """The lowest-residual candidate inside the interval, refined again from its own pose
-    and q on the other hinge side (`Hypothesis.mirrored`), as one more candidate; [] for a
+    and q on the other hinge side (`Hypothesis.mirrored`), as one more candidate judged as
+    every candidate (`judged_ok`, `covered` the mixture's sides); [] for a
     category without a side to decide (`SIDED`) or with no such candidate. The starts of
     one side can all stay in a worse pose than the other side's best (a door the image
     shows closed held open, the yaw a few degrees off), and then the other side wins by
@@ -1460,7 +1498,7 @@ def _other_side(
     if result is None:
         return []
     fitted, residual, label = result
-    inside_interval = interval_ok(label, columns, lower, upper, fitted.joint_type)
+    inside_interval = judged_ok(label, fitted, covered, columns, lower, upper)
     return [Candidate(best.component, best.weight, fitted.chirality, residual, inside_interval,
                       label, fitted)]  # fmt: skip
 
@@ -1531,8 +1569,7 @@ def _candidates(
         residual_network = depth_residual(image.depth, observed)
         count = DRAWER_COMPONENTS if network.joint_type == "prismatic" else COMPONENTS
         order = np.argsort(-np.asarray(weights), kind="stable")[:count]
-        chirality = np.asarray(means)[:, columns.index("chirality")]
-        covered = {1 if c >= 0 else -1 for c in chirality.tolist()}
+        covered = covered_sides(means, columns)
         candidates = []
         for rank, k in enumerate(order.tolist()):
             component = Hypothesis.from_label(means[k], columns, network.joint_type)
@@ -1548,12 +1585,9 @@ def _candidates(
                     start, renderers[start.chirality], observed, rays, seed=rank
                 )
                 label = renderers[h.chirality].label(h, category, columns)
-                # a side the mixture never puts weight on has no interval to lie in
-                judged = h.chirality in covered
                 candidates.append(Candidate(
                     int(k), float(weights[k]), h.chirality, residual,
-                    interval_ok(label, columns, lower, upper, h.joint_type) if judged else True,
-                    label, h,
+                    judged_ok(label, h, covered, columns, lower, upper), label, h,
                 ))  # fmt: skip
     finally:
         for r in renderers.values():
