@@ -26,6 +26,13 @@ evaluate it again and re-card it as above (docs/models.md).
 changes a shipped segmenter's saved inference settings (`artic.artifacts.model_store.
 set_inference_shipped`; the weights stay); as with --half, evaluate it again and re-card it.
 
+    python scripts/ship_model.py models/segmenter/office_chair --axis-head SCANS
+
+fits an axis head onto a shipped votes segmenter (`artic.hierarchy.fit_segmenter.
+axis_head_payload`: the head alone, on the training objects of the scan folder SCANS,
+every other weight kept) and turns `inference.axis_split` on; as with --half, evaluate it
+again and re-card it (docs/hierarchy.md, "One axis per part").
+
 Every run also brings the shipped labellers' compiled programs (`models/compiled/`,
 `artic.hierarchy.compiled`) up to date; `python scripts/ship_model.py --programs` does
 only that (needed after an edit of `artic/hierarchy/gnn.py`: a test says so).
@@ -46,6 +53,7 @@ from artic.artifacts.model_store import (
     recard_shipped,
     set_inference_shipped,
     ship_model,
+    transform_shipped,
 )
 from artic.errors import InputError
 from artic.hierarchy.compiled import compile_shipped
@@ -84,6 +92,29 @@ def _inference_settings(settings: dict[str, Any]) -> dict[str, Any]:
     return InferenceConfig(**settings).model_dump()
 
 
+def _add_axis_head(folder: Path, scans: Path, args: argparse.Namespace) -> Path:
+    """`transform_shipped` with `axis_head_payload`; prints what the fit did."""
+    from artic.artifacts.manifest import read_manifest
+    from artic.hierarchy.fit_segmenter import axis_head_payload
+
+    def transform(payload: dict[str, Any]) -> dict[str, Any]:
+        new, fit = axis_head_payload(payload, scans, args.axis_poses, args.axis_epochs, args.seed)
+        losses = ", ".join(f"{loss:.4f}" for loss in fit.losses)
+        print(  # noqa: T201
+            f"axis head: losses {losses}; validation accuracy {fit.val_accuracy:.4f} "
+            f"(parts weighing the same: {fit.val_part_accuracy:.4f})"
+        )
+        return new
+
+    change = (
+        f"axis head fitted (the rest frozen) on `{scans}` (content hash "
+        f"`{read_manifest(scans).content_hash[:16]}`), its training objects' first "
+        f"{args.axis_poses} poses, "
+        f"{args.axis_epochs} epochs, seed {args.seed}; inference.axis_split on"
+    )
+    return transform_shipped(folder, transform, change)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description="ship a trained model with its card")
     parser.add_argument(
@@ -105,6 +136,15 @@ def main() -> None:
         metavar="KEY=VALUE",
         help="set a shipped segmenter's inference settings (values read as JSON)",
     )
+    parser.add_argument(
+        "--axis-head",
+        type=Path,
+        metavar="SCANS",
+        help="fit an axis head onto a shipped votes segmenter on this scan folder",
+    )
+    parser.add_argument("--axis-poses", type=int, default=6, help="--axis-head: poses per object")
+    parser.add_argument("--axis-epochs", type=int, default=20, help="--axis-head: epochs")
+    parser.add_argument("--seed", type=int, default=0, help="--axis-head: the head's seed")
     parser.add_argument("--commit", help="default: the git commit of the folder's checkout")
     parser.add_argument("--preset", default="", help="when the manifest predates recording it")
     parser.add_argument("--store", type=Path, default=STORE)
@@ -117,10 +157,16 @@ def main() -> None:
         parser.error("a model folder, or --programs")
     commit = args.commit or _commit(args.folder)
     shipped = (args.folder / CARD_JSON).is_file() and not (args.folder / MANIFEST).is_file()
-    if (args.half or args.inference) and (not shipped or args.evaluation is not None):
-        parser.error("--half and --inference take a shipped model's folder and no --evaluation")
+    if (args.half or args.inference or args.axis_head) and (
+        not shipped or args.evaluation is not None
+    ):
+        parser.error(
+            "--half, --inference and --axis-head take a shipped model's folder and no --evaluation"
+        )
     try:
-        if args.half:
+        if args.axis_head:
+            target = _add_axis_head(args.folder, args.axis_head, args)
+        elif args.half:
             target = halve_shipped(args.folder)
         elif args.inference:
             target = set_inference_shipped(

@@ -122,6 +122,8 @@ class ModelCard(BaseModel):
     weights: str = "float32"
     #: a segmenter's inference settings changed after training (`set_inference_shipped`)
     inference: dict[str, Any] = {}
+    #: what else was done to the weights after training, in order (`transform_shipped`)
+    changes: tuple[str, ...] = ()
     evaluation_stage: str | None
     evaluation_hash: str | None
     figures: dict[str, float | int | str]
@@ -524,6 +526,31 @@ def set_inference_shipped(
     return folder
 
 
+def transform_shipped(
+    folder: Path, transform: Callable[[dict[str, Any]], dict[str, Any]], change: str
+) -> Path:
+    """A shipped model's file replaced by `transform` of its saved dict (e.g. a head
+    fitted onto its weights: `scripts/ship_model.py --axis-head`); its card records
+    `change` after the changes before, gets the new file's sha256 and size, and loses the
+    figures measured on the old file: evaluate it and re-card it (`recard_shipped`).
+    `transform` raises InputError for a model it does not take. Returns `folder`."""
+    from artic.artifacts.model_file import load_torch_file, save_torch_file
+
+    card = read_card(folder)
+    model = folder / MODEL_FILE
+    _check_bytes(model, card)
+    payload = transform(load_torch_file(model))
+    partial = folder / f".{MODEL_FILE}.partial"
+    save_torch_file(partial, payload)
+    new = card.model_copy(update={
+        "model_sha256": sha256_file(partial), "size": partial.stat().st_size,
+        "changes": (*card.changes, change),
+        "evaluation_stage": None, "evaluation_hash": None, "figures": {},
+    })  # fmt: skip
+    _replace_card(folder, new, None)
+    return folder
+
+
 def _shipped_section(card: ModelCard) -> str:
     lines = [
         "## Shipped with artic",
@@ -538,6 +565,7 @@ def _shipped_section(card: ModelCard) -> str:
     if card.inference:
         settings = ", ".join(f"{k}={v}" for k, v in card.inference.items())
         lines.append(f"- inference settings changed after training: {settings}")
+    lines += [f"- after training: {change}" for change in card.changes]
     if card.evaluation_stage:
         lines += [
             "",

@@ -55,6 +55,11 @@ class SegmenterModelConfig(Strict):
         description="votes head: the offset loss's mean over labelled points (PointGroup) "
         "or over the parts of each cloud, every part weighing the same",
     )
+    axis_head: bool = Field(
+        False,
+        description="votes head: a per-point head reading whether the point's part moves "
+        "about (or along) a vertical axis, for inference.axis_split",
+    )
 
     def network(self, static_part: Literal["votes", "one"] | None = None) -> SegmentationConfig:
         """The architecture these settings describe; `static_part` resolves "auto" (which
@@ -87,6 +92,7 @@ class SegmenterModelConfig(Strict):
             normals=self.normals,
             static_part=static_part,
             offset_weight=self.offset_weight,
+            axis_head=self.axis_head,
         )
 
 
@@ -119,6 +125,11 @@ class InferenceConfig(Strict):
         description="votes head: cluster the votes of every moving type (rotating, translating, "
         "both) as one set, so a part whose points the network reads as two moving types "
         "stays one part (radius: the largest of those types')",
+    )
+    axis_split: bool = Field(
+        False,
+        description="votes head with an axis head: a part whose points read a vertical and a "
+        "horizontal axis (each side at least min_points per sample) is cut in two",
     )
     passes: int = Field(
         1,

@@ -56,12 +56,13 @@ from artic.hierarchy.segmentation import (
     segment,
     train_step,
 )
-from artic.hierarchy.votes import STATIC, VoteOutput, sought
+from artic.hierarchy.votes import STATIC, VoteOutput, axis_targets, sought
 from artic.learning import trainer
 from artic.learning.fit_state import FitState
 
 if TYPE_CHECKING:
     from artic.artifacts.scan_dataset import ObjectSplit, ScanDataset
+    from artic.objects.tree import KinematicTree
 
 log = logging.getLogger("artic")
 
@@ -122,13 +123,18 @@ class SegmentationData:
     noisy: NDArray[np.bool_]
     normals: NDArray[np.float32] | None = None
     neighbourhoods: list[BackboneIndex] | None = None
+    # (C, S) int64 `votes.axis_targets` (the axis head's), -1 to ignore; None: not loaded
+    axis_vertical: NDArray[np.int64] | None = None
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
 
     @staticmethod
     def stack(
-        clouds: list[PreparedCloud], object_id: list[int], noisy: list[bool]
+        clouds: list[PreparedCloud],
+        object_id: list[int],
+        noisy: list[bool],
+        axis_vertical: list[NDArray[np.int64]] | None = None,
     ) -> SegmentationData:
         if not clouds:
             raise ValueError("no clouds")
@@ -138,6 +144,7 @@ class SegmentationData:
             np.stack([c.motion_type for c in clouds]),
             np.asarray(object_id, dtype=np.int64),
             np.asarray(noisy, dtype=bool),
+            axis_vertical=None if axis_vertical is None else np.stack(axis_vertical),
         )
 
     def batch(self, index: NDArray[np.int64]) -> SegmentationBatch:
@@ -149,6 +156,7 @@ class SegmentationData:
             None
             if self.neighbourhoods is None
             else stack_indices([self.neighbourhoods[i] for i in index]),
+            None if self.axis_vertical is None else torch.from_numpy(self.axis_vertical[index]),
         )
 
     def with_features(self, config: SegmentationConfig, cache: Path | None) -> SegmentationData:
@@ -325,6 +333,157 @@ def network_outputs(
     return outputs
 
 
+#: part ids below this many per cloud (`_point_features` keys (cloud, part) pairs by it)
+N_PART_KEYS = 1 << 16
+
+
+class AxisHeadFit(NamedTuple):
+    """What `fit_axis_head` did: the mean loss of each epoch and, on the validation
+    clouds, the fraction of labelled points whose axis it reads right, over points and
+    with every (cloud, part) pair weighing the same."""
+
+    losses: list[float]
+    val_accuracy: float
+    val_part_accuracy: float
+
+
+def with_axis_head(model: PartSegmentationNet) -> PartSegmentationNet:
+    """A copy of a votes-head `model` with an axis head (`model.axis_head`) added, every
+    other weight the model's own; the head's initial weights from torch's default
+    initialisation under the current seed."""
+    if model.config.head != "votes":
+        raise InputError("axis head: only the votes head (model.head=votes) has one")
+    grown = PartSegmentationNet(dataclasses.replace(model.config, axis_head=True))
+    missing, unexpected = grown.load_state_dict(model.state_dict(), strict=False)
+    assert not unexpected and all(k.startswith("axis.") for k in missing), (missing, unexpected)
+    return grown
+
+
+def _point_features(
+    model: PartSegmentationNet, data: SegmentationData
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The backbone's features (P, C) of every point with an axis target in `data` (with
+    its cached features), evaluation mode, those targets (P,) float32 and each point's
+    weight (P,): every (cloud, part) pair weighs the same, its points share it (a caster
+    of 6 points says as much as a seat of 400), the weights summing to 1."""
+    from artic.hierarchy.segmentation import normalize_points
+
+    assert data.axis_vertical is not None and data.normals is not None
+    assert data.neighbourhoods is not None
+    model.eval()
+    features, targets, groups = [], [], []
+    with torch.no_grad():
+        for i in range(len(data)):
+            known = data.axis_vertical[i] >= 0
+            if not known.any():
+                continue
+            xyz = torch.from_numpy(data.points[i])[None]
+            xyz = normalize_points(xyz) if model.config.normalize else xyz
+            normals = torch.from_numpy(data.normals[i])[None] if model.config.normals else None
+            out = model.backbone(xyz, normals, index=data.neighbourhoods[i])
+            features.append(out.point_features[0][torch.from_numpy(known)])
+            targets.append(torch.from_numpy(data.axis_vertical[i][known]).float())
+            groups.append(torch.from_numpy(data.part_id[i][known] + i * (N_PART_KEYS)))
+    _, group = torch.unique(torch.cat(groups), return_inverse=True)
+    counts = torch.bincount(group)
+    weight = 1.0 / (counts[group].float() * len(counts))
+    return torch.cat(features), torch.cat(targets), weight
+
+
+def fit_axis_head(
+    model: PartSegmentationNet,
+    train: SegmentationData,
+    val: SegmentationData,
+    epochs: int,
+    seed: int,
+    lr: float = 1e-3,
+    batch_points: int = 4096,
+) -> AxisHeadFit:
+    """Train `model.axis` alone (a model from `with_axis_head`) on the axis targets of the
+    `train` clouds (with their cached features and `axis_vertical`): the rest of the
+    network frozen, its features computed once (evaluation mode, no augmentation), the
+    head trained on them with Adam in batches of `batch_points` points (binary
+    cross-entropy, every (cloud, part) pair weighing the same: `_point_features`), `epochs`
+    passes in an order seeded by (seed, epoch). The backbone, motion and offset weights stay the
+    bytes they were, so everything else the segmenter does stays as it was."""
+    if not model.config.axis_head:
+        raise ValueError("fit_axis_head: the model has no axis head (with_axis_head)")
+    x, y, w = _point_features(model, train)
+    head = model.axis
+    optimizer = torch.optim.Adam(head.parameters(), lr=lr)
+    losses = []
+    for epoch in range(epochs):
+        generator = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
+        order = torch.randperm(len(y), generator=generator)
+        head.train()
+        total, count = 0.0, 0
+        for start in range(0, len(y), batch_points):
+            batch = order[start : start + batch_points]
+            if len(batch) < 2:  # batch norm needs two
+                continue
+            logits = head(x[batch][None])[0, :, 0]
+            weight = w[batch] / w[batch].sum()
+            loss = torch.nn.functional.binary_cross_entropy_with_logits(
+                logits, y[batch], weight=weight, reduction="sum"
+            )
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            total, count = total + float(loss.detach()), count + 1
+        losses.append(total / max(count, 1))
+        log.info("axis head epoch %d: loss %.4f", epoch + 1, losses[-1])
+    model.eval()
+    xv, yv, wv = _point_features(model, val)
+    with torch.no_grad():
+        right = ((head(xv[None])[0, :, 0] > 0).float() == yv).float()
+    return AxisHeadFit(losses, float(right.mean()), float((right * wv).sum()))
+
+
+def axis_head_payload(
+    payload: dict[str, Any], scans: Path, max_poses: int, epochs: int, seed: int
+) -> tuple[dict[str, Any], AxisHeadFit]:
+    """A saved votes segmenter (`models.save_segmenter`'s dict) with an axis head fitted
+    onto it (`with_axis_head`, its initial weights drawn after `torch.manual_seed(seed)`;
+    `fit_axis_head` on the first `max_poses` poses of the training objects of the scan
+    folder `scans`, the card's split, its validation objects to score), saved with
+    `inference.axis_split` on; every other weight and setting as it was. InputError for a
+    masks-head model or scans of another category."""
+    from artic.artifacts.scan_dataset import ScanDataset
+    from artic.hierarchy.cloud_cache import segmenter_cache_dir
+    from artic.hierarchy.models import segmentation_config_from_dict, segmentation_config_to_dict
+
+    config = segmentation_config_from_dict(payload["hparams"]["segmentation"])
+    if config.head != "votes":
+        raise InputError("axis head: only the votes head (model.head=votes) has one")
+    state = payload["state_dict"]
+    model = PartSegmentationNet(config)
+    model.load_state_dict({k: v.float() for k, v in state.items()})
+    ds = ScanDataset.open_category(scans, str(payload["category"]))
+    data = CloudDataConfig(max_poses=max_poses)
+    split = training_objects(ds, data)
+    n_points = int(payload["hparams"]["inference"]["n_points"])
+    clouds = [
+        load_clouds(ds, objects, data, n_points, config.n_masks, seed)[0].with_features(
+            config, segmenter_cache_dir(scans)
+        )
+        for objects in (split.train, split.val)
+    ]
+    torch.manual_seed(seed)
+    grown = with_axis_head(model)
+    fit = fit_axis_head(grown, clouds[0], clouds[1], epochs, seed)
+    dtype = next(iter(state.values())).dtype
+    hparams = {
+        **payload["hparams"],
+        "segmentation": segmentation_config_to_dict(grown.config),
+        "inference": {**payload["hparams"]["inference"], "axis_split": True},
+    }
+    new_state = {
+        k: (state[k] if k in state else v.detach().cpu().to(dtype))
+        for k, v in grown.state_dict().items()
+    }
+    return {**payload, "hparams": hparams, "state_dict": new_state}, fit
+
+
 def score_segmenter(
     model: PartSegmentationNet,
     data: SegmentationData,
@@ -442,7 +601,8 @@ def load_clouds(
     rows = ds.select("train", data.kinds, objects)
     if data.max_poses is not None:
         rows = [r for r in rows if r.pose < data.max_poses]
-    clouds, ids, noisy, skipped = [], [], [], 0
+    clouds, ids, noisy, axes, skipped = [], [], [], [], 0
+    trees: dict[int, KinematicTree] = {}
     for row in rows:
         cloud = ds.cloud(row)
         assert cloud.part_id is not None and cloud.motion_type is not None
@@ -450,12 +610,16 @@ def load_clouds(
             skipped += 1
             continue
         rng = np.random.default_rng([seed, row.object_id, row.pose, row.kind == "noisy"])
-        clouds.append(prepare_cloud(cloud.points, cloud.part_id, cloud.motion_type, n_points, rng))
+        prepared = prepare_cloud(cloud.points, cloud.part_id, cloud.motion_type, n_points, rng)
+        clouds.append(prepared)
+        if row.object_id not in trees:
+            trees[row.object_id] = ds.tree(row.object_id)
+        axes.append(axis_targets(prepared.part_id, trees[row.object_id]))
         ids.append(row.object_id)
         noisy.append(row.kind == "noisy")
     if not clouds:
         raise InputError(f"scans: {ds.root} has no usable clouds of objects {objects[:5]}...")
-    return SegmentationData.stack(clouds, ids, noisy), skipped
+    return SegmentationData.stack(clouds, ids, noisy, axes), skipped
 
 
 class ValidationScan(NamedTuple):

@@ -78,6 +78,8 @@ class SegmentationConfig:
     # votes head's offset loss: every labelled point weighs the same ("points", PointGroup)
     # or every part of a cloud does ("parts": a part's points share its weight)
     offset_weight: OffsetWeight = "points"
+    # votes head: per point, whether its part moves about a vertical axis (`votes.axis_targets`)
+    axis_head: bool = False
 
     @property
     def one_part(self) -> tuple[int, ...]:
@@ -133,6 +135,8 @@ class PartSegmentationNet(nn.Module):
         )
         if config.head == "votes":
             self.offset = nn.Sequential(SharedMLP(c, (h // 2,), norm), nn.Linear(h // 2, 3))
+            if config.axis_head:
+                self.axis = nn.Sequential(SharedMLP(c, (h // 2,), norm), nn.Linear(h // 2, 1))
             return
         # no BatchNorm here: the global feature has one row per cloud (batches of one train)
         w = config.confidence_width
@@ -151,7 +155,8 @@ class PartSegmentationNet(nn.Module):
         features = self.backbone(xyz, normals if self.config.normals else None, index=index)
         motion = self.motion(features.point_features)
         if self.config.head == "votes":
-            return VoteOutput(motion, self.offset(features.point_features), xyz)
+            axis = self.axis(features.point_features)[..., 0] if self.config.axis_head else None
+            return VoteOutput(motion, self.offset(features.point_features), xyz, axis)
         return SegmentationOutput(
             self.instance(features.point_features),
             torch.sigmoid(self.confidence(features.global_features)),
@@ -260,6 +265,7 @@ class SegmentationBatch(NamedTuple):
     motion_type: Tensor  # (B, N) int64 in 0..3, -1 to ignore
     normals: Tensor | None = None  # (B, N, 3) float32 unit normals, for `normals=True` nets
     neighbourhoods: BackboneIndex | None = None  # precomputed, `cloud_cache`
+    axis_vertical: Tensor | None = None  # (B, N) int64 `votes.axis_targets`, -1 to ignore
 
 
 class StepLosses(NamedTuple):
@@ -280,13 +286,15 @@ def head_loss(
     weights: LossWeights | None = None,
     vote_static: bool = True,
     per_part: bool = False,
+    axis_vertical: Tensor | None = None,
 ) -> StepLosses:
     """`segmentation_loss` (masks head; `weights`) or `votes.vote_loss` (votes head;
     `vote_static` False: no offset loss on static points, `static_part` "one"; `per_part`:
-    every part weighs the same in the offset loss, `offset_weight` "parts")."""
+    every part weighs the same in the offset loss, `offset_weight` "parts"; `axis_vertical`:
+    the axis head's targets)."""
     losses: SegmentationLosses | VoteLosses
     if isinstance(output, VoteOutput):
-        losses = vote_loss(output, part_id, motion_type, vote_static, per_part)
+        losses = vote_loss(output, part_id, motion_type, vote_static, per_part, axis_vertical)
     else:
         losses = segmentation_loss(output, part_id, motion_type, weights)
     terms = {k: float(v.detach()) for k, v in losses._asdict().items()}
@@ -311,9 +319,10 @@ def run_batch(
     output = model(batch.points.to(device), normals, index)
     vote_static = model.config.static_part == "votes"
     per_part = model.config.offset_weight == "parts"
+    axis = None if batch.axis_vertical is None else batch.axis_vertical.to(device)
     return head_loss(
         output, batch.part_id.to(device), batch.motion_type.to(device), weights, vote_static,
-        per_part,
+        per_part, axis,
     )  # fmt: skip
 
 
@@ -447,6 +456,7 @@ def parts_of_passes(
             network.one_part,
             config.mode_bandwidth,
             config.moving_together,
+            len(samples) * max(config.min_points, 1) if config.axis_split else 0,
         )
         label, confidence = clusters.label, clusters.confidence
     else:
@@ -531,7 +541,13 @@ def forward(
         mirrored = model(xyz * flip, None if normals is None else normals * flip, index)
         assert isinstance(mirrored, VoteOutput)
         prob = (out.motion_logits.softmax(-1) + mirrored.motion_logits.softmax(-1)) / 2
-        return VoteOutput(prob.log(), (out.offsets + mirrored.offsets * flip) / 2, out.xyz)
+        axis = None
+        if out.axis_logits is not None and mirrored.axis_logits is not None:
+            # a mirror image keeps an axis's vertical component: the probabilities averaged
+            up = (torch.sigmoid(out.axis_logits) + torch.sigmoid(mirrored.axis_logits)) / 2
+            axis = torch.logit(up)
+        offsets = (out.offsets + mirrored.offsets * flip) / 2
+        return VoteOutput(prob.log(), offsets, out.xyz, axis)
 
 
 class MergedMasks(NamedTuple):

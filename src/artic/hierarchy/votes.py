@@ -63,7 +63,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from torch import Tensor
 
-from artic.objects.tree import MOTION_TYPES
+from artic.objects.tree import MOTION_TYPES, KinematicTree
 
 #: the static motion type's index
 STATIC = MOTION_TYPES.index("static")
@@ -198,14 +198,36 @@ class VoteOutput(NamedTuple):
     motion_logits: Tensor  # (B, N, 4) over MOTION_TYPES
     offsets: Tensor  # (B, N, 3), from each point to its part's centre, in cloud radii
     xyz: Tensor  # (B, N, 3) the (normalised) coordinates the network saw
+    # (B, N) logit that the point's part moves about (or along) a vertical axis; with
+    # `model.axis_head` only (`axis_targets`, `split_by_axis`)
+    axis_logits: Tensor | None = None
 
 
 class VoteLosses(NamedTuple):
-    total: Tensor  # motion + offset + direction, differentiable
+    total: Tensor  # motion + offset + direction (+ axis), differentiable
     motion: Tensor  # cross-entropy of the motion types
     offset: Tensor  # mean L1 (summed over x, y, z) of the offset error, labelled points
     direction: Tensor  # mean 1 - cos(predicted, true offset), labelled points
     offset_error: Tensor  # mean Euclidean offset error, cloud radii (no gradient)
+    axis: Tensor  # binary cross-entropy of the axis head, points of a moving part (or 0)
+
+
+#: a joint axis whose direction's |z| exceeds this is vertical (`axis_targets`)
+VERTICAL = 0.5
+
+
+def axis_targets(part_id: NDArray[np.integer], tree: KinematicTree) -> NDArray[np.int64]:
+    """Per point (N,), whether its part's joint axis is vertical (1) or not (0), -1 for
+    points of no part, of the root or of a part on a fixed joint (no axis). The axis is
+    the tree's at configuration zero in the object frame (z up): exact for a part whose
+    ancestors turn only about vertical axes (a chair's wheel under its swivelling caster, a
+    cabinet's doors and drawers), an approximation below a tilting one."""
+    vertical = np.full(tree.num_parts + 1, -1, dtype=np.int64)  # the last: no part
+    for (_, child), axis in zip(tree.edges, tree.axes or (), strict=False):
+        if axis is not None:
+            vertical[child] = int(abs(float(axis.direction[2])) > VERTICAL)
+    ids = np.asarray(part_id, dtype=np.int64)
+    return vertical[np.where((ids >= 0) & (ids < tree.num_parts), ids, tree.num_parts)]
 
 
 def _part_groups(part_id: Tensor, labelled: Tensor) -> tuple[Tensor, Tensor]:
@@ -246,6 +268,7 @@ def vote_loss(
     motion_type: Tensor,
     vote_static: bool = True,
     per_part: bool = False,
+    axis_vertical: Tensor | None = None,
 ) -> VoteLosses:
     """PointGroup's losses, mean over the batch's labelled points (module doc).
 
@@ -253,7 +276,9 @@ def vote_loss(
     vote_static False: points whose true motion type is static (0) get no offset loss.
     per_part: the offset and direction losses weigh every (cloud, part) pair the same
     (`part_weights`) instead of every point (`model.offset_weight=parts`); the reported
-    offset error stays the mean over points.
+    offset error stays the mean over points. axis_vertical (B, N) int64 (`axis_targets`,
+    -1 to ignore): with the output's `axis_logits`, their binary cross-entropy joins the
+    total (mean over the points it labels).
     """
     zero = output.offsets.new_zeros(())
     motion = (
@@ -281,7 +306,14 @@ def vote_loss(
         error = (predicted - true).detach().norm(dim=-1).mean()
     else:
         offset, direction, error = zero, zero, zero
-    return VoteLosses(motion + offset + direction, motion, offset, direction, error)
+    axis = zero
+    if output.axis_logits is not None and axis_vertical is not None:
+        known = axis_vertical >= 0
+        if known.any():
+            axis = F.binary_cross_entropy_with_logits(
+                output.axis_logits[known], axis_vertical[known].to(output.axis_logits.dtype)
+            )
+    return VoteLosses(motion + offset + direction + axis, motion, offset, direction, error, axis)
 
 
 class Clusters(NamedTuple):
@@ -380,7 +412,9 @@ def merge_passes(
         xyz.append(out.xyz[0] * scale + shift.to(out.xyz.device))
         offsets.append(out.offsets[0] * scale)
     logits = torch.cat([out.motion_logits[0] for out in outputs])
-    return VoteOutput(logits[None], torch.cat(offsets)[None], torch.cat(xyz)[None])
+    axes = [out.axis_logits[0] for out in outputs if out.axis_logits is not None]
+    axis = torch.cat(axes)[None] if len(axes) == len(outputs) else None
+    return VoteOutput(logits[None], torch.cat(offsets)[None], torch.cat(xyz)[None], axis)
 
 
 def vote_parts(
@@ -390,9 +424,48 @@ def vote_parts(
     one_part: Collection[int] = (),
     bandwidth: float = 0.0,
     moving_together: bool = False,
+    axis_split: int = 0,
 ) -> tuple[Clusters, NDArray[np.float32]]:
-    """`cluster_votes` on the first cloud of a batch -> (clusters, motion_prob (S, T))."""
+    """`cluster_votes` on the first cloud of a batch -> (clusters, motion_prob (S, T));
+    with `axis_split` > 0 (and the output's `axis_logits`), then `split_by_axis` with
+    halves of at least that many points."""
     prob = output.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
     shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
     clusters = cluster_votes(shifted, prob, radius, min_size, one_part, bandwidth, moving_together)
+    if axis_split > 0 and output.axis_logits is not None:
+        vertical = torch.sigmoid(output.axis_logits[0]).cpu().numpy().astype(np.float32)
+        clusters = split_by_axis(clusters, vertical, prob.argmax(-1) == STATIC, axis_split)
     return clusters, prob
+
+
+def split_by_axis(
+    clusters: Clusters,
+    vertical: NDArray[np.floating],
+    static: NDArray[np.bool_],
+    min_size: int,
+) -> Clusters:
+    """Each part of moving points cut in two where its points read two axes (structure: a
+    rigid part moves about one axis): its points whose `vertical` probability (S,) is above
+    one half against the rest, when both have `min_size` points (`segment`: the minimum
+    per sample, `inference.min_points`, times the samples; a half is a part of a kept
+    cluster, so the cluster's floor of a fraction of the sample does not apply to it:
+    chosen on the office chair's validation scans, docs/hierarchy.md). A swivelling caster and
+    the wheel it carries vote for centres 2-3 cm apart, which the clustering joins; the
+    caster turns about a vertical axis, the wheel about a horizontal one. Parts of `static`
+    points (S,) stay whole. Each half's confidence is the part's times its points' mean
+    probability of their axis. Parts renumbered by decreasing size, as `cluster_votes`."""
+    groups: list[tuple[NDArray[np.int64], float]] = []
+    up = vertical > 0.5
+    for part, confidence in enumerate(clusters.confidence.tolist()):
+        members = np.flatnonzero(clusters.label == part)
+        halves = [members[up[members]], members[~up[members]]]
+        if static[members].mean() > 0.5 or min(len(h) for h in halves) < min_size:
+            groups.append((members, confidence))
+            continue
+        for half, p in zip(halves, (vertical, 1.0 - vertical), strict=True):
+            groups.append((half, confidence * float(np.mean(p[half]))))
+    groups.sort(key=lambda g: (-len(g[0]), int(g[0][0])))
+    label = np.empty_like(clusters.label)
+    for i, (members, _) in enumerate(groups):
+        label[members] = i
+    return Clusters(label, np.array([c for _, c in groups], dtype=np.float32))
