@@ -95,10 +95,13 @@ def _inference_settings(settings: dict[str, Any]) -> dict[str, Any]:
 def _add_axis_head(folder: Path, scans: Path, args: argparse.Namespace) -> Path:
     """`transform_shipped` with `axis_head_payload`; prints what the fit did."""
     from artic.artifacts.manifest import read_manifest
+    from artic.hierarchy.config import CloudDataConfig
     from artic.hierarchy.fit_segmenter import axis_head_payload
 
+    data = CloudDataConfig(max_poses=args.axis_poses)
+
     def transform(payload: dict[str, Any]) -> dict[str, Any]:
-        new, fit = axis_head_payload(payload, scans, args.axis_poses, args.axis_epochs, args.seed)
+        new, fit = axis_head_payload(payload, scans, data, args.axis_epochs, args.seed)
         losses = ", ".join(f"{loss:.4f}" for loss in fit.losses)
         print(  # noqa: T201
             f"axis head: losses {losses}; validation accuracy {fit.val_accuracy:.4f} "

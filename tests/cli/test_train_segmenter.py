@@ -169,6 +169,57 @@ def test_votes_head_trains_chooses_its_radius_and_segments(tiny: TinyScans, tmp_
     assert len(result.part_confidence) == result.part_id.max() + 1
 
 
+def test_votes_head_trains_with_an_axis_head(tiny: TinyScans, tmp_path: Path) -> None:
+    """`model.axis_head=true`: the axis head trains with the rest (its loss in the total:
+    `votes.vote_loss`), the model file keeps it and `inference.axis_split`, and `segment`
+    reads it."""
+    out = tmp_path / "axis"
+    code, _, err = run_cli(
+        *ARGS, "model.head=votes", "model.axis_head=true", "inference.axis_split=true",
+        "train.cluster_radii=[0.2]", f"scans={tiny.scans}", f"out={out}",
+    )  # fmt: skip
+    assert code == 0, err
+    loaded = load_segmenter(out / "model.pt", "storage_furniture")
+    assert loaded.model.config.axis_head and loaded.inference.axis_split
+    ds = ScanDataset.open(tiny.scans)
+    cloud = ds.cloud(ds.select("test", ("noisy",))[0])
+    result = segment(loaded.model, cloud.points, loaded.inference)
+    assert result.part_id.shape == (len(cloud.points),)
+
+
+def test_an_axis_head_fitted_onto_a_shipped_segmenter(tiny: TinyScans, tmp_path: Path) -> None:
+    """`scripts/ship_model.py --axis-head`'s pieces (`axis_head_payload` through
+    `transform_shipped`) on a copy of the shipped storage-furniture segmenter: the head is
+    added and axis_split turned on, every other weight and setting keeps its bytes, the
+    card records the change and drops the figures measured on the old file."""
+    from artic.artifacts.model_store import read_card, shipped_input, transform_shipped
+    from artic.hierarchy.config import CloudDataConfig
+
+    store = Path(__file__).resolve().parents[2] / "models"
+    folder = tmp_path / "segmenter"
+    shutil.copytree(store / "segmenter" / "storage_furniture", folder)
+    before, old = read_card(folder), load_segmenter(folder / "model.pt")
+    fits = []
+
+    def transform(payload: dict[str, Any]) -> dict[str, Any]:
+        data = CloudDataConfig(max_poses=1, val_every=2)
+        new, fit = fit_segmenter.axis_head_payload(payload, tiny.scans, data, 2, 0)
+        fits.append(fit)
+        return new
+
+    assert transform_shipped(folder, transform, "an axis head") == folder
+    card, new = read_card(folder), load_segmenter(folder / "model.pt")
+    assert new.model.config.axis_head and not old.model.config.axis_head
+    assert new.inference == old.inference.model_copy(update={"axis_split": True})
+    grown = new.model.state_dict()
+    for name, value in old.model.state_dict().items():
+        assert torch.equal(grown[name], value), name
+    assert {k for k in grown if k not in old.model.state_dict()} and len(fits[0].losses) == 2
+    assert card.changes == ("an axis head",) and card.figures == {} and before.figures
+    assert shipped_input(folder, card.stage) is not None  # the card matches the new bytes
+    assert "- after training: an axis head" in (folder / "model_card.md").read_text()
+
+
 def test_votes_head_chooses_passes_and_part_size_on_whole_scans(
     tiny: TinyScans, tmp_path: Path
 ) -> None:

@@ -440,14 +440,14 @@ def fit_axis_head(
 
 
 def axis_head_payload(
-    payload: dict[str, Any], scans: Path, max_poses: int, epochs: int, seed: int
+    payload: dict[str, Any], scans: Path, data: CloudDataConfig, epochs: int, seed: int
 ) -> tuple[dict[str, Any], AxisHeadFit]:
     """A saved votes segmenter (`models.save_segmenter`'s dict) with an axis head fitted
     onto it (`with_axis_head`, its initial weights drawn after `torch.manual_seed(seed)`;
-    `fit_axis_head` on the first `max_poses` poses of the training objects of the scan
-    folder `scans`, the card's split, its validation objects to score), saved with
-    `inference.axis_split` on; every other weight and setting as it was. InputError for a
-    masks-head model or scans of another category."""
+    `fit_axis_head` on the clouds `data` selects of the training objects of the scan folder
+    `scans`, split into training and validation as `train-segmenter` splits them), saved
+    with `inference.axis_split` on; every other weight and setting as it was. InputError
+    for a masks-head model or scans of another category."""
     from artic.artifacts.scan_dataset import ScanDataset
     from artic.hierarchy.cloud_cache import segmenter_cache_dir
     from artic.hierarchy.models import segmentation_config_from_dict, segmentation_config_to_dict
@@ -459,7 +459,6 @@ def axis_head_payload(
     model = PartSegmentationNet(config)
     model.load_state_dict({k: v.float() for k, v in state.items()})
     ds = ScanDataset.open_category(scans, str(payload["category"]))
-    data = CloudDataConfig(max_poses=max_poses)
     split = training_objects(ds, data)
     n_points = int(payload["hparams"]["inference"]["n_points"])
     clouds = [

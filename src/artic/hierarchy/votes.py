@@ -278,7 +278,8 @@ def vote_loss(
     (`part_weights`) instead of every point (`model.offset_weight=parts`); the reported
     offset error stays the mean over points. axis_vertical (B, N) int64 (`axis_targets`,
     -1 to ignore): with the output's `axis_logits`, their binary cross-entropy joins the
-    total (mean over the points it labels).
+    total, every (cloud, part) pair it labels weighing the same (`part_weights`: a caster
+    of 6 points as much as a seat of 400, as `fit_axis_head` weighs them).
     """
     zero = output.offsets.new_zeros(())
     motion = (
@@ -310,9 +311,11 @@ def vote_loss(
     if output.axis_logits is not None and axis_vertical is not None:
         known = axis_vertical >= 0
         if known.any():
-            axis = F.binary_cross_entropy_with_logits(
-                output.axis_logits[known], axis_vertical[known].to(output.axis_logits.dtype)
+            logits = output.axis_logits[known]
+            bce = F.binary_cross_entropy_with_logits(
+                logits, axis_vertical[known].to(logits.dtype), reduction="none"
             )
+            axis = (bce * part_weights(part_id, known).to(bce.dtype)).sum()
     return VoteLosses(motion + offset + direction + axis, motion, offset, direction, error, axis)
 
 
