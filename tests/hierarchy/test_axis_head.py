@@ -64,6 +64,11 @@ def test_a_part_whose_points_read_two_axes_is_cut_in_two():
     whole = split_by_axis(Clusters(label, np.ones(3, dtype=np.float32)),
                           vertical.astype(np.float32), static, min_size=9)  # fmt: skip
     np.testing.assert_array_equal(whole.label, label)
+    # ... or than the share of the part: 8 of 20 points is 40%
+    for share, parts in ((0.4, 4), (0.45, 3)):
+        cut = split_by_axis(Clusters(label, np.ones(3, dtype=np.float32)),
+                            vertical.astype(np.float32), static, 5, share)  # fmt: skip
+        assert cut.label.max() + 1 == parts
 
 
 def test_the_axis_loss_joins_the_total_only_where_it_has_targets():
