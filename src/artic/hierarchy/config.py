@@ -129,7 +129,8 @@ class InferenceConfig(Strict):
     axis_split: bool = Field(
         False,
         description="votes head with an axis head: a part whose points read a vertical and a "
-        "horizontal axis (each side at least min_points per sample) is cut in two",
+        "horizontal axis (each side at least min_points per sample, the smaller a quarter of the "
+        "part: votes.AXIS_SPLIT_SHARE) is cut in two",
     )
     passes: int = Field(
         1,

@@ -472,7 +472,7 @@ def split_by_axis(
         members = np.flatnonzero(clusters.label == part)
         halves = [members[up[members]], members[~up[members]]]
         smaller = min(len(h) for h in halves)
-        if static[members].mean() > 0.5 or smaller < max(min_size, min_share * len(members)):
+        if static[members].mean() > 0.5 or smaller < max(1, min_size, min_share * len(members)):
             groups.append((members, confidence))
             continue
         for half, p in zip(halves, (vertical, 1.0 - vertical), strict=True):
