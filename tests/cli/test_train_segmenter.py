@@ -215,6 +215,8 @@ def test_an_axis_head_fitted_onto_a_shipped_segmenter(tiny: TinyScans, tmp_path:
     for name, value in old.model.state_dict().items():
         assert torch.equal(grown[name], value), name
     assert {k for k in grown if k not in old.model.state_dict()} and len(fits[0].losses) == 2
+    saved = torch.load(folder / "model.pt", weights_only=True)["state_dict"]
+    assert saved["axis.0.layers.1.num_batches_tracked"].dtype == torch.int64
     assert card.changes == ("an axis head",) and card.figures == {} and before.figures
     assert shipped_input(folder, card.stage) is not None  # the card matches the new bytes
     assert "- after training: an axis head" in (folder / "model_card.md").read_text()

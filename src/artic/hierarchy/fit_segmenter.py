@@ -476,8 +476,8 @@ def axis_head_payload(
         "segmentation": segmentation_config_to_dict(grown.config),
         "inference": {**payload["hparams"]["inference"], "axis_split": True},
     }
-    new_state = {
-        k: (state[k] if k in state else v.detach().cpu().to(dtype))
+    new_state = {  # the head's weights stored as the model's, its step counters as ints
+        k: state[k] if k in state else v.detach().cpu().to(dtype) if v.is_floating_point() else v
         for k, v in grown.state_dict().items()
     }
     return {**payload, "hparams": hparams, "state_dict": new_state}, fit
