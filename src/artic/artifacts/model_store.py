@@ -467,7 +467,7 @@ def halve_shipped(folder: Path) -> Path:
     the new file's sha256 and size, and loses the figures and `refined_intervals.csv`
     measured on the old bytes: evaluate the halved model and re-card it
     (`recard_shipped`) before shipping it. Returns `folder`."""
-    from artic.artifacts.model_file import half_precision, load_torch_file, save_torch_file
+    from artic.artifacts.model_file import half_precision, load_torch_file
 
     card = read_card(folder)
     model = folder / MODEL_FILE
@@ -479,14 +479,7 @@ def halve_shipped(folder: Path) -> Path:
         payload["state_dict"] = half_precision(payload["state_dict"])
     except ValueError as err:
         raise InputError(f"{model}: cannot be stored in half precision: {err}") from None
-    partial = folder / f".{MODEL_FILE}.partial"
-    save_torch_file(partial, payload)
-    new = card.model_copy(update={
-        "model_sha256": sha256_file(partial), "size": partial.stat().st_size,
-        "weights": "float16", "evaluation_stage": None, "evaluation_hash": None, "figures": {},
-    })  # fmt: skip
-    _replace_card(folder, new, None)
-    return folder
+    return _rewrite_shipped(folder, card, payload, {"weights": "float16"})
 
 
 def set_inference_shipped(
@@ -500,7 +493,7 @@ def set_inference_shipped(
     records the change and gets the new file's sha256 and size, and loses the figures
     measured with the old settings: evaluate it and re-card it (`recard_shipped`).
     InputError for another kind of model or settings `validate` refuses. Returns `folder`."""
-    from artic.artifacts.model_file import load_torch_file, save_torch_file
+    from artic.artifacts.model_file import load_torch_file
 
     card = read_card(folder)
     model = folder / MODEL_FILE
@@ -515,15 +508,7 @@ def set_inference_shipped(
         field = ".".join(str(p) for p in first["loc"])
         raise InputError(f"{model}: inference.{field}: {first['msg']}") from None
     payload["hparams"]["inference"] = settings
-    partial = folder / f".{MODEL_FILE}.partial"
-    save_torch_file(partial, payload)
-    new = card.model_copy(update={
-        "model_sha256": sha256_file(partial), "size": partial.stat().st_size,
-        "inference": {**card.inference, **updates},
-        "evaluation_stage": None, "evaluation_hash": None, "figures": {},
-    })  # fmt: skip
-    _replace_card(folder, new, None)
-    return folder
+    return _rewrite_shipped(folder, card, payload, {"inference": {**card.inference, **updates}})
 
 
 def transform_shipped(
@@ -534,17 +519,28 @@ def transform_shipped(
     `change` after the changes before, gets the new file's sha256 and size, and loses the
     figures measured on the old file: evaluate it and re-card it (`recard_shipped`).
     `transform` raises InputError for a model it does not take. Returns `folder`."""
-    from artic.artifacts.model_file import load_torch_file, save_torch_file
+    from artic.artifacts.model_file import load_torch_file
 
     card = read_card(folder)
     model = folder / MODEL_FILE
     _check_bytes(model, card)
     payload = transform(load_torch_file(model))
+    return _rewrite_shipped(folder, card, payload, {"changes": (*card.changes, change)})
+
+
+def _rewrite_shipped(
+    folder: Path, card: ModelCard, payload: dict[str, Any], update: dict[str, Any]
+) -> Path:
+    """`payload` written as the shipped `folder`'s model file, its `card` changed by
+    `update`, given the new file's sha256 and size, and cleared of the figures measured on
+    the old file (`_replace_card`; `halve_shipped`, `set_inference_shipped`,
+    `transform_shipped`). Returns `folder`."""
+    from artic.artifacts.model_file import save_torch_file
+
     partial = folder / f".{MODEL_FILE}.partial"
     save_torch_file(partial, payload)
     new = card.model_copy(update={
-        "model_sha256": sha256_file(partial), "size": partial.stat().st_size,
-        "changes": (*card.changes, change),
+        "model_sha256": sha256_file(partial), "size": partial.stat().st_size, **update,
         "evaluation_stage": None, "evaluation_hash": None, "figures": {},
     })  # fmt: skip
     _replace_card(folder, new, None)

@@ -56,7 +56,7 @@ from artic.hierarchy.segmentation import (
     segment,
     train_step,
 )
-from artic.hierarchy.votes import STATIC, VoteOutput, axis_targets, sought
+from artic.hierarchy.votes import STATIC, VoteOutput, axis_targets, part_weights, sought
 from artic.learning import trainer
 from artic.learning.fit_state import FitState
 
@@ -333,10 +333,6 @@ def network_outputs(
     return outputs
 
 
-#: part ids below this many per cloud (`_point_features` keys (cloud, part) pairs by it)
-N_PART_KEYS = 1 << 16
-
-
 class AxisHeadFit(NamedTuple):
     """What `fit_axis_head` did: the mean loss of each epoch and, on the validation
     clouds, the fraction of labelled points whose axis it reads right, over points and
@@ -365,13 +361,14 @@ def _point_features(
     """The backbone's features (P, C) of every point with an axis target in `data` (with
     its cached features), evaluation mode, those targets (P,) float32 and each point's
     weight (P,): every (cloud, part) pair weighs the same, its points share it (a caster
-    of 6 points says as much as a seat of 400), the weights summing to 1."""
+    of 6 points says as much as a seat of 400), the weights summing to 1 (`part_weights`,
+    as `vote_loss` weighs the axis loss)."""
     from artic.hierarchy.segmentation import normalize_points
 
     assert data.axis_vertical is not None and data.normals is not None
     assert data.neighbourhoods is not None
     model.eval()
-    features, targets, groups = [], [], []
+    features, targets = [], []
     with torch.no_grad():
         for i in range(len(data)):
             known = data.axis_vertical[i] >= 0
@@ -383,10 +380,8 @@ def _point_features(
             out = model.backbone(xyz, normals, index=data.neighbourhoods[i])
             features.append(out.point_features[0][torch.from_numpy(known)])
             targets.append(torch.from_numpy(data.axis_vertical[i][known]).float())
-            groups.append(torch.from_numpy(data.part_id[i][known] + i * (N_PART_KEYS)))
-    _, group = torch.unique(torch.cat(groups), return_inverse=True)
-    counts = torch.bincount(group)
-    weight = 1.0 / (counts[group].float() * len(counts))
+    known_all = torch.from_numpy(data.axis_vertical >= 0)  # the points above, in their order
+    weight = part_weights(torch.from_numpy(data.part_id), known_all).float()
     return torch.cat(features), torch.cat(targets), weight
 
 

@@ -456,7 +456,7 @@ def parts_of_passes(
             network.one_part,
             config.mode_bandwidth,
             config.moving_together,
-            len(samples) * max(config.min_points, 1) if config.axis_split else 0,
+            len(samples) * config.min_points if config.axis_split else None,
         )
         label, confidence = clusters.label, clusters.confidence
     else:

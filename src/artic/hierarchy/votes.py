@@ -433,15 +433,15 @@ def vote_parts(
     one_part: Collection[int] = (),
     bandwidth: float = 0.0,
     moving_together: bool = False,
-    axis_split: int = 0,
+    axis_split: int | None = None,
 ) -> tuple[Clusters, NDArray[np.float32]]:
     """`cluster_votes` on the first cloud of a batch -> (clusters, motion_prob (S, T));
-    with `axis_split` > 0 (and the output's `axis_logits`), then `split_by_axis` with
-    halves of at least that many points."""
+    with `axis_split` (the halves' minimum size; None: no cut) and the output's
+    `axis_logits`, then `split_by_axis`."""
     prob = output.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
     shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
     clusters = cluster_votes(shifted, prob, radius, min_size, one_part, bandwidth, moving_together)
-    if axis_split > 0 and output.axis_logits is not None:
+    if axis_split is not None and output.axis_logits is not None:
         vertical = torch.sigmoid(output.axis_logits[0]).cpu().numpy().astype(np.float32)
         static = prob.argmax(-1) == STATIC
         clusters = split_by_axis(clusters, vertical, static, axis_split, AXIS_SPLIT_SHARE)

@@ -1371,10 +1371,11 @@ def refine(
             math.nan, math.nan, none,
         )  # fmt: skip
     network = Hypothesis.from_label(estimate, columns, JOINT_TYPES[category])
+    covered = covered_sides(means, columns)
     try:
         residual_network, candidates = _candidates(
             network, observed, camera, category, columns, weights, means, lower, upper, parts,
-            threads,
+            covered, threads,
         )  # fmt: skip
     except (ValueError, np.linalg.LinAlgError) as err:  # an object the builder refuses
         return Refinement(
@@ -1382,7 +1383,7 @@ def refine(
             math.nan, math.nan, none,
         )  # fmt: skip
     candidates.extend(_other_side(candidates, observed, camera, category, columns, parts,
-                                  lower, upper, covered_sides(means, columns)))  # fmt: skip
+                                  lower, upper, covered))  # fmt: skip
     inside = [c for c in candidates if c.inside_interval]
     overlay = False
     if network.joint_type == "prismatic":
@@ -1554,10 +1555,12 @@ def _candidates(
     lower: Array,
     upper: Array,
     parts: PartsConfig,
+    covered: Collection[int],
     threads: int = 1,
 ) -> tuple[float, list[Candidate]]:
-    """The network's residual and every refined candidate (module docstring), their rays
-    cast on `threads` threads."""
+    """The network's residual and every refined candidate (module docstring), each judged
+    by `judged_ok` (`covered`: the mixture's hinge sides), their rays cast on `threads`
+    threads."""
     rays = camera.ray_directions()
     # a door from both hinge sides; a drawer and the two-door cabinet have one
     sides = (1, -1) if category in SIDED else (network.chirality,)
@@ -1569,7 +1572,6 @@ def _candidates(
         residual_network = depth_residual(image.depth, observed)
         count = DRAWER_COMPONENTS if network.joint_type == "prismatic" else COMPONENTS
         order = np.argsort(-np.asarray(weights), kind="stable")[:count]
-        covered = covered_sides(means, columns)
         candidates = []
         for rank, k in enumerate(order.tolist()):
             component = Hypothesis.from_label(means[k], columns, network.joint_type)
