@@ -55,6 +55,13 @@ network's own: the returned estimate's residual is never larger than the network
 The chosen door candidate then has its width fitted too, and then its depth (`_refit_sizes`:
 the width as below, the depth off the far edge of the side in view, `side_depth`; one more
 build of the object each; every candidate before it shares the network's sizes).
+Then, when its body shows no face the rounds fit the yaw from (a cabinet's front is all
+door; seen square-on, no side shows, and the rounds keep the yaw they start from and read
+q off the door against it), its body is turned about the door's hinge, the door held
+where the image shows it (`hinge_turn`, `about_hinge`: yaw + d, q - sign d, up to 20 deg
+each way, q in its range); the turn of the lowest depth residual is refined once more and
+kept when its residual is lower and it is judged inside the mixture's interval (one more
+build).
 
 A box whose side the network took for its front (a nearly square object turned about 45
 deg with its door shut: the front and the side show the same box) is read again a quarter
@@ -203,6 +210,11 @@ INTERVAL_MARGIN_M = 0.03
 Q_PRIOR_WEIGHT = 0.01
 #: the step of the search along a drawer's opening (`search_opening`, m)
 SEARCH_STEP = 0.01
+#: a chosen door candidate whose body shows no face to fit its yaw from is turned about
+#: its hinge, the doors held where the image shows them, up to this far each way (rad),
+#: every `HINGE_TURN_STEP`, then a fifth of that around the best (`hinge_turn`)
+HINGE_TURN_SPAN = math.radians(20.0)
+HINGE_TURN_STEP = math.radians(2.0)
 #: how far the search moves a drawer's base along its front and up or down (m)
 SEARCH_SPAN = 0.05
 #: a flap's base height is searched this far either side of the start's and the first
@@ -1129,20 +1141,23 @@ def _line_search(
     high: float,
     renderer: PosedRenderer,
     observed: NDArray[np.floating],
+    step: float = SEARCH_STEP,
+    ends: bool = False,
 ) -> Hypothesis:
-    """`move(d)` of the lowest depth residual for d in [low, high] (0 included): every
-    `SEARCH_STEP`, then every `SEARCH_STEP` / 5 around the best; of equal residuals (a
-    part the image does not show: the same render), the smallest move."""
+    """`move(d)` of the lowest depth residual for d in [low, high] (0 included, and with
+    `ends` low and high too): every `step`, then every `step` / 5 around the best; of
+    equal residuals (a part the image does not show: the same render), the smallest move."""
 
     def best(values: Array) -> float:
         images = renderer.render_many([move(float(d)) for d in values])
         residuals = [depth_residual(image.depth, observed) for image in images]
         return float(values[np.lexsort((np.abs(values), np.asarray(residuals)))[0]])
 
-    coarse = np.unique(np.concatenate([np.arange(0.0, low - 1e-9, -SEARCH_STEP),
-                                       np.arange(0.0, high + 1e-9, SEARCH_STEP)]))  # fmt: skip
+    coarse = np.unique(np.concatenate([np.arange(0.0, low - 1e-9, -step),
+                                       np.arange(0.0, high + 1e-9, step),
+                                       [low, high] if ends else []]))  # fmt: skip
     d = best(coarse)
-    fine = d + np.arange(-4, 5) * SEARCH_STEP / 5
+    fine = d + np.arange(-4, 5) * step / 5
     return move(best(fine[(fine >= low) & (fine <= high)]))
 
 
@@ -1403,6 +1418,7 @@ def refine(
         columns, category, parts, (image, view), (observed, camera),
     )  # fmt: skip
     best = _refit_sizes(best, observed, camera, category, columns, parts, lower, upper)
+    best = hinge_turn(best, observed, camera, category, columns, parts, covered, lower, upper)
     # a quarter turn, when no test found a front's features on the chosen front
     turned = [] if named_by else _turned(best, observed, camera, category, columns, parts,
                                          lower, upper)  # fmt: skip
@@ -1624,6 +1640,84 @@ def _refit_sizes(
     assert best.hypothesis is not None
     deeper = side_depth(best.hypothesis, observed, camera)
     return _refit(best, deeper, observed, camera, category, columns, parts, lower, upper)[0]
+
+
+def about_hinge(h: Hypothesis, doors: Sequence[_Door], delta: float) -> Hypothesis:
+    """`h`'s body turned by `delta` (rad) about the vertical line of the first door's
+    hinge, the doors held where they are: their hinge lines and planes stay, each q
+    changing by -sign x delta (a refrigerator's two doors share their hinge line)."""
+    pose = h.pose_matrix()
+    hinge = (pose[:3, :3] @ doors[0].origin + pose[:3, 3])[:2]
+    base = hinge + rot_z(delta)[:2, :2] @ (np.array([h.x, h.y]) - hinge)
+    qs = tuple(q - door.sign * delta for q, door in zip(h.qs, doors, strict=True))
+    return dataclasses.replace(h, x=float(base[0]), y=float(base[1]), yaw=h.yaw + delta, qs=qs)
+
+
+def _yaw_fitted(
+    h: Hypothesis, renderer: PosedRenderer, observed: NDArray[np.float32], camera: CameraIntrinsics
+) -> bool:
+    """Whether the rounds fit `h`'s yaw: the body's front or side has RANSAC inliers
+    (`_face_inliers`) at the last round's tolerance; with none, `_fit_yaw` keeps the yaw."""
+    image, door_poses = renderer.render(h)
+    faces = _faces(h, image, door_poses, renderer.doors, observed, camera.ray_directions(),
+                   TOLERANCES[-1], renderer.door_thickness)  # fmt: skip
+    front, side, _ = _face_inliers(faces, 0)
+    return bool(front.any() or side.any())
+
+
+def hinge_turn(
+    best: Candidate,
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    parts: PartsConfig,
+    covered: Collection[int],
+    lower: Array,
+    upper: Array,
+) -> Candidate:
+    """The chosen candidate of a category whose doors turn about one vertical hinge line
+    (`SIDED`), when its body shows no face the rounds fit its yaw from (`_yaw_fitted`),
+    with its body turned about that line (`about_hinge`, up to `HINGE_TURN_SPAN` each way,
+    every q kept in its range) to the turn of the lowest depth residual, then refined from
+    there (`refine_hypothesis`); kept when its residual is lower and it is judged inside
+    the mixture's interval (`judged_ok`). The door fixes the sum of yaw and q, the body's
+    faces the yaw; with none in view (a cabinet's front is all door, and seen square-on
+    no side shows) the rounds keep the yaw they start from, which only this search moves.
+    Where they fit it, the residual's minimum lies off their yaw by up to a few degrees
+    (the sensor's noise, sizes a centimetre off), so the search is not run (one more
+    build: ~10-30 ms)."""
+    h = best.hypothesis
+    if h is None or category not in SIDED or h.joint_type != "revolute":
+        return best
+    renderer = PosedRenderer(h, category, parts, camera)
+    try:
+        doors = renderer.doors
+        hinge = doors[0].origin[:2]
+        if any(d.flap or not np.allclose(d.origin[:2], hinge) for d in doors) or _yaw_fitted(
+            h, renderer, observed, camera
+        ):
+            return best
+        # each q - sign x delta stays in [0, top]
+        top = q_max(h.joint_type, h.depth)
+        low, high = -HINGE_TURN_SPAN, HINGE_TURN_SPAN
+        for q, door in zip(h.qs, doors, strict=True):
+            bounds = sorted((door.sign * q, door.sign * (q - top)))
+            low, high = max(low, bounds[0]), min(high, bounds[1])
+        low, high = min(0.0, low), max(0.0, high)
+        # the ends too: a shut door's q = 0 is where the truth often is
+        turned = _line_search(lambda d: about_hinge(h, doors, d), low, high, renderer, observed,
+                              HINGE_TURN_STEP, ends=True)  # fmt: skip
+        if turned.yaw == h.yaw:  # no turn
+            return best
+        fitted, residual = refine_hypothesis(turned, renderer, observed, camera.ray_directions())
+        label = renderer.label(fitted, category, columns)
+    finally:
+        renderer.close()
+    if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
+        return best
+    return dataclasses.replace(best, residual=residual, label=label, hypothesis=fitted,
+                               inside_interval=True)  # fmt: skip
 
 
 def _overlay_front(
