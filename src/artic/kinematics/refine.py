@@ -1688,15 +1688,13 @@ def hinge_turn(
     (the sensor's noise, sizes a centimetre off), so the search is not run (one more
     build: ~10-30 ms)."""
     h = best.hypothesis
-    if h is None or category not in SIDED or h.joint_type != "revolute":
+    if h is None or category not in SIDED:
         return best
     renderer = PosedRenderer(h, category, parts, camera)
     try:
-        doors = renderer.doors
-        hinge = doors[0].origin[:2]
-        if any(d.flap or not np.allclose(d.origin[:2], hinge) for d in doors) or _yaw_fitted(
-            h, renderer, observed, camera
-        ):
+        doors = renderer.doors  # on one vertical hinge line (`SIDED`), as `about_hinge` needs
+        assert all(np.allclose(d.origin[:2], doors[0].origin[:2]) for d in doors)
+        if _yaw_fitted(h, renderer, observed, camera):
             return best
         # each q - sign x delta stays in [0, top]
         top = q_max(h.joint_type, h.depth)
