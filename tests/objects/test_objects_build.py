@@ -137,15 +137,13 @@ def test_opening_moves_parts_towards_the_camera(
                 np.testing.assert_allclose(opened[:, 0], closed[:, 0] - q[j])
                 np.testing.assert_allclose(opened[:, 1:], closed[:, 1:])
                 continue
-            # the free edge (farthest from the axis) moves out by about radius * sin(q), less
-            # thickness * (1 - cos q): its outer corner, a door's thickness before the axis,
-            # swings back by that (a 4 cm toaster door is a fifth of a 20 cm one's radius)
+            # the free edge (farthest from the axis) moves out by about radius * sin(q)
+            # (less by the door's thickness, a tenth of a 15 cm cabinet2 door's radius)
             origin = transform_points(obj.joints[2 * j].origin, np.zeros((1, 3)))[0]
             radius = np.linalg.norm(np.cross(closed - origin, joint.axis), axis=1)
             free = np.argmax(radius)
             drop = closed[free, 0] - opened[free, 0]
-            thick = spec.parts.door_thickness * (1.0 - np.cos(q[j]))
-            assert drop > 0.95 * radius[free] * np.sin(q[j]) - thick
+            assert drop > 0.85 * radius[free] * np.sin(q[j])
             # a door never swings into the body
             assert np.all(opened[:, 0] <= front + 1e-9)
 
