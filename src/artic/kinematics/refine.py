@@ -1685,10 +1685,13 @@ def flap_base(
     its height the body's (the feet are not modelled). One object build per height tried
     (~3 ms each for a toaster)."""
     h = best.hypothesis
-    if h is None or h.joint_type != "revolute" or category not in FLAPS:
+    if h is None or category not in FLAPS:
         return best
     top = h.z + h.height
-    tried: dict[float, tuple[float, Hypothesis, Array | None]] = {}
+    # d = 0 is the candidate itself, its residual known
+    tried: dict[float, tuple[float, Hypothesis, Array | None]] = {
+        0.0: (best.residual, h, best.label)
+    }
 
     def residual(d: float) -> float:
         if d not in tried:
@@ -1713,8 +1716,7 @@ def flap_base(
         return best
     if not interval_ok(label, columns, lower, upper, raised.joint_type):
         return best
-    return dataclasses.replace(best, residual=value, label=label, hypothesis=raised,
-                               inside_interval=True)  # fmt: skip
+    return _kept(best, raised, value, label)
 
 
 def about_hinge(h: Hypothesis, doors: Sequence[_Door], delta: float) -> Hypothesis:
@@ -1789,8 +1791,7 @@ def hinge_turn(
         renderer.close()
     if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
         return best
-    return dataclasses.replace(best, residual=residual, label=label, hypothesis=fitted,
-                               inside_interval=True)  # fmt: skip
+    return _kept(best, fitted, residual, label)
 
 
 def _overlay_front(
@@ -1920,9 +1921,14 @@ def _refit(
     inside = interval_ok(label, columns, lower, upper, fitted.joint_type)
     if not (residual < best.residual and inside):
         return best, False
-    replaced = dataclasses.replace(best, residual=residual, label=label, hypothesis=fitted,
-                                   inside_interval=True)  # fmt: skip
-    return replaced, True
+    return _kept(best, fitted, residual, label), True
+
+
+def _kept(best: Candidate, fitted: Hypothesis, residual: float, label: Array) -> Candidate:
+    """`best` replaced by a refit of it that was kept (`fitted`, its residual and label):
+    judged inside the mixture's interval."""
+    return dataclasses.replace(best, residual=residual, label=label, hypothesis=fitted,
+                               inside_interval=True)  # fmt: skip
 
 
 def _rounds_from(
