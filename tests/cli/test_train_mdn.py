@@ -257,6 +257,28 @@ def test_evaluate_mdn_writes_table_3_1_and_calibration(tiny_model, tiny_depth, t
     assert not (out / "refined_intervals.csv").exists()
 
 
+@pytest.mark.parametrize(("refine_images", "rows"), [("null", 4), ("2", 2), ("0", 0)])
+def test_evaluate_mdn_refines_the_first_n_test_images_or_all(
+    tiny_model, tiny_depth, tmp_path, refine_images, rows
+):
+    """`evaluate.refine_images`: the refined row's images are the first N test images, all
+    of them with null (Table 3.1's rows), none with 0 (no refined row)."""
+    out = tmp_path / "report"
+    code, _, err = run_cli(
+        "evaluate", "mdn", "debug=tiny", "category=microwave", f"model={tiny_model}",
+        f"depth={tiny_depth}", "evaluate.icp_images=0", "evaluate.examples=0",
+        "evaluate.max_test_images=4", f"evaluate.refine_images={refine_images}", f"out={out}",
+    )  # fmt: skip
+    assert code == 0, err
+    summary = {r["method"]: r for r in csv.DictReader((out / "summary.csv").open())}
+    assert summary["Ours"]["images"] == "4"
+    if rows:
+        assert summary["Ours + refinement"]["images"] == str(rows)
+        assert len(list(csv.DictReader((out / "refinement.csv").open()))) == rows
+    else:
+        assert "Ours + refinement" not in summary
+
+
 def test_evaluate_mdn_reads_the_objects_as_a_hashed_input(
     tiny_model, tiny_objects, tmp_path, monkeypatch
 ):

@@ -53,8 +53,11 @@ class MdnEvaluateConfig(Strict):
     )
     examples: int = Field(8, ge=0)
     refine: bool = Field(True, description="add the 'Ours + refinement' row (kinematics/refine.py)")
-    refine_images: int = Field(
-        500, ge=0, description="the refinement runs on the first N test images"
+    refine_images: int | None = Field(
+        500, ge=0, description="the refinement runs on the first N test images (None: all)"
+    )
+    calibration_images: int = Field(
+        500, ge=0, description="the refined intervals' scales are fitted on the first N val images"
     )
 
 

@@ -112,8 +112,9 @@ def evaluate(
     """Every method on `test`; coverage at `levels` and at `CURVE_LEVELS`; the refined
     estimate (`REFINED`) on the first `refine_images` test images of a category the
     refinement supports, with its intervals' scales fitted on the first `refine_images`
-    images of `calibration` (withheld from training: the validation split;
-    `refined_scales`) and their coverage on the refined test images."""
+    images of `calibration` (withheld from training: the validation split's first
+    `evaluate.calibration_images`, as the CLI passes it; `refined_scales`) and their
+    coverage on the refined test images."""
     codec = predictor.codec
     all_levels = tuple(sorted(set(levels) | set(CURVE_LEVELS)))
     inside = {lv: np.zeros(len(codec.columns)) for lv in all_levels}
