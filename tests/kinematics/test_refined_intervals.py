@@ -54,6 +54,8 @@ def test_intervals_fitted_on_the_test_images_cover_them(tiny_model, tiny_depth):
     result = evaluate(predictor, train, test, None, 0, 8, (0.5, 0.9), refine_images=len(test),
                       calibration=test)  # fmt: skip
     assert REFINED in result.predictions
+    assert result.calibration_images == len(test)
+    assert f"k per column fitted on {len(test)} validation images" in result.refinement_note((0.9,))
     learned = predictor.codec.learned
     assert set(result.refined_coverage) == set(result.coverage)
     for level, cover in result.refined_coverage.items():

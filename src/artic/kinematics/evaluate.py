@@ -50,6 +50,8 @@ class Evaluation:
     #: network's half-width, and level -> (L,) fraction of the refined test images inside
     refined_scales: dict[float, NDArray[np.float64]] = field(default_factory=dict)
     refined_coverage: dict[float, NDArray[np.float64]] = field(default_factory=dict)
+    #: how many validation images `refined_scales` were fitted on
+    calibration_images: int = 0
 
     def write_refinement(
         self, folder: Path, object_id: NDArray[np.integer], columns: list[str], dof: int
@@ -92,7 +94,8 @@ class Evaluation:
             )
             note += (
                 f"Its intervals (the estimate +- k x the network's half-width, k per column "
-                f"fitted on as many validation images: refined_intervals.csv) held the "
+                f"fitted on {self.calibration_images} validation images: refined_intervals.csv) "
+                f"held the "
                 f"truth in {cells} (all predicted columns; calibration_refined.csv).\n"
             )
         return note
@@ -156,12 +159,14 @@ def evaluate(
     refinement: list[tuple[str, float, float]] = []
     scales: dict[float, NDArray[np.float64]] = {}
     refined_cover: dict[float, NDArray[np.float64]] = {}
+    held_images = 0
     if refine_images > 0 and predictor.category in REFINED_CATEGORIES:
         n = min(refine_images, len(test))
         refined, halves = _refined(predictor, test.depth_m(slice(0, n)), all_levels, refinement)
         predictions[REFINED] = refined
         if calibration is not None and len(calibration) > 0:
             held = calibration.head(refine_images)
+            held_images = len(held)
             fitted, fitted_halves = _refined(predictor, held.depth_m(slice(0, len(held))),
                                              all_levels, [])  # fmt: skip
             for lv in all_levels:
@@ -177,7 +182,7 @@ def evaluate(
         for name, p in predictions.items()
     }
     cover = {lv: np.where(codec.learned, v / len(test), np.nan) for lv, v in inside.items()}
-    return Evaluation(predictions, errors, cover, refinement, scales, refined_cover)
+    return Evaluation(predictions, errors, cover, refinement, scales, refined_cover, held_images)
 
 
 def _refined(
