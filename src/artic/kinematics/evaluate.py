@@ -95,8 +95,7 @@ class Evaluation:
             note += (
                 f"Its intervals (the estimate +- k x the network's half-width, k per column "
                 f"fitted on {self.calibration_images} validation images: refined_intervals.csv) "
-                f"held the "
-                f"truth in {cells} (all predicted columns; calibration_refined.csv).\n"
+                f"held the truth in {cells} (all predicted columns; calibration_refined.csv).\n"
             )
         return note
 
