@@ -27,7 +27,10 @@ from artic.errors import InputError
 from artic.hierarchy.fit_segmenter import InferenceSearch, choose_inference, validation_scans
 from artic.hierarchy.models import load_segmenter
 
-FIELDS = ("moving_together", "passes", "min_points", "cluster_radius", "mode_bandwidth")
+FIELDS = (
+    "moving_together", "passes", "modes_per_pass", "min_points", "cluster_radius",
+    "mode_bandwidth",
+)  # fmt: skip
 
 
 def main() -> None:
@@ -47,6 +50,13 @@ def main() -> None:
         nargs="*",
         default=["false", "true"],
         help="inference.moving_together candidates (the first step of the search)",
+    )
+    parser.add_argument(
+        "--modes-per-pass",
+        choices=["false", "true"],
+        nargs="*",
+        default=[],
+        help="inference.modes_per_pass candidates (after the passes; default: kept)",
     )
     parser.add_argument("--out", type=Path, help="every tried setting's score (JSON)")
     args = parser.parse_args()
@@ -73,6 +83,7 @@ def main() -> None:
         tuple(args.radii),
         tuple(args.bandwidths),
         tuple(v == "true" for v in args.moving_together),
+        tuple(v == "true" for v in args.modes_per_pass),
     )
     chosen, scores = choose_inference(loaded.model, scans, loaded.inference, search)
     saved = next(iter(scores.values()), float("nan"))  # the first scored: the saved settings

@@ -139,6 +139,14 @@ class InferenceConfig(Strict):
         "of n_points each (as many as the cloud has points for) and all their votes are "
         "clustered together, so parts are cut at passes x n_points points",
     )
+    modes_per_pass: bool = Field(
+        False,
+        description="votes head, passes > 1: each pass's votes climb to their modes among "
+        "that pass's own votes (mode_bandwidth) before all passes' are clustered together: "
+        "the samples are independent draws of one cloud, so their modes agree to within the "
+        "flood-fill radius, at passes x n_points^2 mean-shift work instead of "
+        "(passes x n_points)^2",
+    )
 
     @field_validator("cluster_radius", mode="before")
     @classmethod

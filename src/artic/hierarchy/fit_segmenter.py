@@ -658,6 +658,7 @@ class InferenceSearch:
     cluster_radii: tuple[float, ...] = ()
     mode_bandwidths: tuple[float, ...] = ()
     moving_together: tuple[bool, ...] = ()
+    modes_per_pass: tuple[bool, ...] = ()
 
 
 def choose_inference(
@@ -667,16 +668,23 @@ def choose_inference(
     search: InferenceSearch,
 ) -> tuple[InferenceConfig, dict[str, float]]:
     """Votes head: `inference` with the passes, minimum part size, per-motion-type radii and
-    mode-seeking bandwidth that score the best mean of clean and noisy mAP@0.5 on whole
+    mode-seeking bandwidth (and where the votes seek their modes, `modes_per_pass`) that
+    score the best mean of clean and noisy mAP@0.5 on whole
     `scans`, every point labelled as `segment` labels it (the figure `evaluate hierarchy`
     reports; `choose_cluster_radius` scores the network's samples instead, where a part of
     a few points still counts whole). A coordinate search from `inference`: whether the
-    moving types' votes are clustered together, passes, then min_points, then each type's
+    moving types' votes are clustered together, passes, whether each pass's votes seek
+    their modes among their own, then min_points, then each type's
     radius (not for a type that is one part), then the bandwidth, each candidate with the
     others kept; ties keep the current value. The network runs once per scan, on as many
     samples as the most passes tried. Returns the chosen settings and every tried
     setting's score, keyed by its values."""
-    from artic.hierarchy.segmentation import merged_passes, network_passes, parts_of_passes
+    from artic.hierarchy.segmentation import (
+        merged_passes,
+        modes_of_passes,
+        network_passes,
+        parts_of_passes,
+    )
     from artic.progress import progress
 
     if model.config.head != "votes":
@@ -693,24 +701,27 @@ def choose_inference(
     def key(s: InferenceConfig) -> str:
         radius = ",".join(f"{r:g}" for r in s.cluster_radius)
         together = ";moving_together" if s.moving_together else ""
+        per_pass = ";modes_per_pass" if s.modes_per_pass else ""
         return (
             f"passes={s.passes};min_points={s.min_points};radius={radius};"
-            f"h={s.mode_bandwidth:g}{together}"
+            f"h={s.mode_bandwidth:g}{together}{per_pass}"
         )
 
     one_part = model.config.one_part
-    moved: dict[tuple[int, float, bool], list[VoteOutput]] = {}
+    moved: dict[tuple[int, float, bool, bool], list[VoteOutput]] = {}
 
     def votes(s: InferenceConfig) -> list[VoteOutput]:
-        """Every scan's first `passes` outputs merged and moved to their modes, once for all
-        the settings that share them (`votes.sought`)."""
-        shared = (s.passes, s.mode_bandwidth, s.moving_together)
+        """Every scan's first `passes` outputs merged and moved to their modes (each pass's
+        among its own with `modes_per_pass`, as `parts_of_passes`), once for all the
+        settings that share them (`votes.sought`)."""
+        shared = (s.passes, s.mode_bandwidth, s.moving_together, s.modes_per_pass)
         if shared not in moved:
             merged = []
             for scan, (samples, outputs) in zip(scans, runs, strict=True):
                 n = len(samples[: s.passes])
-                out = merged_passes(model.config, scan.points, samples[:n], outputs[:n])
-                merged.append(sought(out, s.mode_bandwidth, one_part, s.moving_together))
+                moved_passes, h = modes_of_passes(model.config, outputs[:n], s)
+                out = merged_passes(model.config, scan.points, samples[:n], moved_passes)
+                merged.append(sought(out, h, one_part, s.moving_together))
             moved.clear()  # one of these at a time: the search changes one setting
             moved[shared] = merged
         return moved[shared]
@@ -734,6 +745,7 @@ def choose_inference(
     steps: list[tuple[str, Sequence[Any]]] = [
         ("moving_together", search.moving_together),
         ("passes", search.passes),
+        ("modes_per_pass", search.modes_per_pass),
         ("min_points", search.min_points),
         *((f"radius{t}", search.cluster_radii) for t in range(4) if t not in one_part),
         ("mode_bandwidth", search.mode_bandwidths),

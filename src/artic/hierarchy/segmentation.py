@@ -50,6 +50,7 @@ from artic.hierarchy.votes import (
     VoteLosses,
     VoteOutput,
     merge_passes,
+    sought,
     vote_loss,
     vote_parts,
 )
@@ -442,7 +443,10 @@ def parts_of_passes(
     """Steps 3-4 of `segment`: the parts of every point of `points` from the network's
     outputs on its `samples` (`network_passes`), with `config`'s clustering settings (its
     `passes` is not read: every sample given is used). outputs: one per sample, or one
-    for all of them, already merged (`votes.merge_passes`)."""
+    for all of them, already merged (`votes.merge_passes`). With `modes_per_pass`, each
+    sample's votes are moved to their modes among that sample's own (`votes.sought`) before
+    the merge, and not again after it."""
+    outputs, bandwidth = modes_of_passes(network, outputs, config)
     out = outputs[0] if len(outputs) == 1 else merged_passes(network, points, samples, outputs)
     sample = np.concatenate(samples)
     min_size = len(samples) * max(
@@ -454,7 +458,7 @@ def parts_of_passes(
             config.cluster_radius,
             min_size,
             network.one_part,
-            config.mode_bandwidth,
+            bandwidth,
             config.moving_together,
             len(samples) * config.min_points if config.axis_split else None,
         )
@@ -484,6 +488,22 @@ def merged_passes(
     frame (`votes.merge_passes`); `network_passes` refuses passes to the masks head."""
     frames = [normalization_frame(points[sample], network.normalize) for sample in samples]
     return merge_passes(cast(list[VoteOutput], list(outputs)), frames)
+
+
+def modes_of_passes(
+    network: SegmentationConfig,
+    outputs: Sequence[SegmentationOutput | VoteOutput],
+    config: InferenceConfig,
+) -> tuple[Sequence[SegmentationOutput | VoteOutput], float]:
+    """The outputs of several passes with each one's votes moved to their modes among its
+    own (`votes.sought`) and 0, the bandwidth left for clustering them together, when
+    `config.modes_per_pass` (votes head, more than one output); else `outputs` and
+    `config.mode_bandwidth`."""
+    if not (config.modes_per_pass and len(outputs) > 1):
+        return outputs, config.mode_bandwidth
+    moved = [sought(cast(VoteOutput, o), config.mode_bandwidth, network.one_part,
+                    config.moving_together) for o in outputs]  # fmt: skip
+    return moved, 0.0
 
 
 def sample_passes(
