@@ -67,7 +67,8 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
     ds = DepthDataset.open(inputs["depth"])
     if ds.label_columns != list(predictor.codec.columns):
         raise InputError(f"depth: {inputs['depth']} has other label columns than the model")
-    train = DepthSplit.concat([load_split(ds, s) for s in ("train", "val")])
+    val = load_split(ds, "val")  # read once: the baselines' data and the calibration images
+    train = DepthSplit.concat([load_split(ds, "train"), val])
     test = load_split(ds, "test").head(cfg.evaluate.max_test_images)
     if len(test) == 0 or len(train) == 0:
         raise InputError(f"depth: {inputs['depth']} has no test or no training images")
@@ -77,7 +78,7 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
     result = evaluate(
         predictor, train, test, icp, cfg.evaluate.icp_images, cfg.evaluate.batch_size,
         cfg.evaluate.levels, _refined_count(cfg.evaluate, len(test)),
-        load_split(ds, "val").head(cfg.evaluate.calibration_images),
+        val.head(cfg.evaluate.calibration_images),
     )  # fmt: skip
     _write(tmp, cfg, predictor, test, result)
     return 1
