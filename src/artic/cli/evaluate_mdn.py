@@ -77,18 +77,11 @@ def evaluate_chunk(cfg: EvaluateMdnConfig, inputs: dict[str, Path], chunk: int, 
     icp = IcpBaseline(template, train.labels, predictor.camera)
     result = evaluate(
         predictor, train, test, icp, cfg.evaluate.icp_images, cfg.evaluate.batch_size,
-        cfg.evaluate.levels, _refined_count(cfg.evaluate, len(test)),
+        cfg.evaluate.levels, cfg.evaluate.refined_count(len(test)),
         val.head(cfg.evaluate.calibration_images),
     )  # fmt: skip
     _write(tmp, cfg, predictor, test, result)
     return 1
-
-
-def _refined_count(cfg: MdnEvaluateConfig, test_images: int) -> int:
-    """How many of the first test images the refinement runs on (0: no refined row)."""
-    if not cfg.refine:
-        return 0
-    return test_images if cfg.refine_images is None else cfg.refine_images
 
 
 def _write(

@@ -60,6 +60,12 @@ class MdnEvaluateConfig(Strict):
         500, ge=0, description="the refined intervals' scales are fitted on the first N val images"
     )
 
+    def refined_count(self, test_images: int) -> int:
+        """How many of the first test images the refinement runs on (0: no refined row)."""
+        if not self.refine:
+            return 0
+        return test_images if self.refine_images is None else self.refine_images
+
 
 class DataRecord(Strict):
     """An input a model was trained on: where it was and its content hash."""
