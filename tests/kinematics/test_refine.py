@@ -44,6 +44,7 @@ from artic.kinematics.refine import (
     handle_position,
     handle_side,
     hinge_turn,
+    hinge_width,
     mirror_label,
     panel_side,
     refine,
@@ -118,6 +119,62 @@ def test_posed_renderer_gives_the_images_of_a_freshly_built_object():
             np.testing.assert_array_equal(image.part_mask, fresh.part_mask)
     finally:
         renderer.close()
+
+
+@pytest.mark.parametrize("category", ["microwave", "cabinet", "refrigerator"])
+def test_an_object_stretched_to_other_sizes_is_drawn_as_one_built_at_them(category):
+    """`render_stretched`: the same bytes at the object's own sizes; at another width (the
+    hinge moved with it) or height, the depth of a freshly built object on all but the
+    pixels of the walls' and the gap's edges, which scale with the body."""
+    start = dataclasses.replace(_truth(category, -1, 0.6), qs=(0.6,) * (2 if category
+                                == "refrigerator" else 1))  # fmt: skip
+    renderer = PosedRenderer(start, category, PARTS, CAMERA)
+    try:
+        (same,) = renderer.render_stretched([start])
+        np.testing.assert_array_equal(same.depth, renderer.render(start)[0].depth)
+        for width, height in ((0.05, 0.0), (-0.06, 0.0), (0.0, 0.05)):
+            h = dataclasses.replace(start, width=start.width + width, height=start.height + height)
+            (stretched,) = renderer.render_stretched([h])
+            with make_backend("raycast", CAMERA) as backend:
+                fresh = backend.render(build(h.spec(category, PARTS)), np.array(h.qs))
+            union = (stretched.depth > 0) | (fresh.depth > 0)
+            near = np.abs(stretched.depth - fresh.depth) < 0.002
+            assert near[union].mean() > 0.9
+            assert (stretched.part_mask == fresh.part_mask)[union].mean() > 0.98
+    finally:
+        renderer.close()
+
+
+@pytest.mark.parametrize("chirality", [1, -1])
+@pytest.mark.parametrize("q", [0.0, 0.5])
+def test_the_hinge_is_moved_to_where_the_width_puts_it(chirality, q):
+    """A microwave whose width was read 5 cm narrow on its hinge's side (the control
+    panel's side where the image shows it): `hinge_width` widens it on that side, the
+    hinge to within a search step of the truth."""
+    truth = _truth("microwave", chirality, q)
+    observed = _image(truth, "microwave")
+    renderer = PosedRenderer(truth, "microwave", PARTS, CAMERA)
+    try:
+        hinge = 1.0 if renderer.doors[0].origin[1] > 0 else -1.0
+        exact = renderer.label(truth, "microwave", COLUMNS)
+    finally:
+        renderer.close()
+    c, s = math.cos(truth.yaw), math.sin(truth.yaw)
+    shift = -hinge * 0.05 / 2  # the far side held
+    narrow = dataclasses.replace(truth, width=truth.width - 0.05, x=truth.x - shift * s,
+                                 y=truth.y + shift * c)  # fmt: skip
+    renderer = PosedRenderer(narrow, "microwave", PARTS, CAMERA)
+    try:
+        image, _ = renderer.render(narrow)
+        label = renderer.label(narrow, "microwave", COLUMNS)
+    finally:
+        renderer.close()
+    residual = depth_residual(image.depth, observed)
+    chosen = Candidate(0, 1.0, chirality, residual, True, label, narrow)
+    moved = hinge_width(chosen, observed, CAMERA, "microwave", COLUMNS, PARTS)
+    assert moved.hypothesis is not None and moved.residual < residual
+    assert np.linalg.norm(_origin(moved.label) - _origin(exact)) < 0.005
+    assert np.linalg.norm(_origin(label) - _origin(exact)) > 0.04
 
 
 def test_hypotheses_rendered_together_are_the_images_rendered_one_at_a_time():

@@ -63,6 +63,11 @@ each way, q in its range); the turn of the lowest depth residual is refined once
 kept when its residual is lower and it is judged inside the mixture's interval (one more
 build).
 
+A microwave's chosen candidate then has its width searched on the depth residual with the
+control panel's side held and the hinge's moved (`hinge_width`, `PANEL_HELD`): each width
+drawn from the candidate's object stretched to it (`PosedRenderer.render_stretched`), the
+one found built and kept when its residual is lower.
+
 A box whose side the network took for its front (a nearly square object turned about 45
 deg with its door shut: the front and the side show the same box) is read again a quarter
 turn away (`_turned`): the chosen candidate turned about its middle so that the side in
@@ -167,6 +172,9 @@ SUPPORTED = tuple(JOINT_TYPES)
 SIDED = ("cabinet", "microwave", "refrigerator")
 #: the categories whose door is a flap hinged at its bottom edge (`_Door.flap`)
 FLAPS = ("toaster",)
+#: the categories whose door's width is searched with the control panel's side held
+#: (`hinge_width`): a door on one vertical hinge beside a control panel
+PANEL_HELD = ("microwave",)
 #: render-assign-fit rounds per candidate
 ITERATIONS = 3
 #: an observed point joins a face when within this of its plane (m), per round
@@ -221,6 +229,10 @@ HINGE_TURN_SPAN = math.radians(20.0)
 HINGE_TURN_STEP = math.radians(2.0)
 #: how far the search moves a drawer's base along its front and up or down (m)
 SEARCH_SPAN = 0.05
+#: how far `hinge_width` moves the hinge's side each way (m), and the narrowest body it
+#: tries
+HINGE_WIDTH_SPAN = 0.08
+MIN_WIDTH = 0.1
 #: a flap's base height is searched this far either side of the start's and the first
 #: round's (m): the network's is within about a centimetre (`search_height`)
 FLAP_HEIGHT_SPAN = 0.02
@@ -553,6 +565,19 @@ class PosedRenderer:
             raise ValueError("PosedRenderer: another geometry or hinge side")
         qs = np.array([h.qs for h in hs], dtype=np.float64)
         return self.backend.render_posed(self.object, [h.pose_matrix() for h in hs], qs)
+
+    def render_stretched(self, hs: Sequence[Hypothesis]) -> list[RenderedImage]:
+        """The images of `hs` (this hinge side; any depth, width and height), each drawn
+        from this object with its body frame scaled to its sizes (`RaycastBackend.
+        render_posed`'s stretches): no object built, but walls, gaps and the doors'
+        thickness scale with the body (a few millimetres at the sizes' spread), so the
+        images are near, not equal to, those of objects built at the sizes. For searches
+        over a size; what they find is judged on a built object."""
+        if any(h.chirality != self.chirality for h in hs):
+            raise ValueError("PosedRenderer: another hinge side")
+        qs = np.array([h.qs for h in hs], dtype=np.float64)
+        scales = np.array([[h.depth, h.width, h.height] for h in hs]) / np.array(self.geometry)
+        return self.backend.render_posed(self.object, [h.pose_matrix() for h in hs], qs, scales)
 
     def label(self, h: Hypothesis, category: str, columns: list[str]) -> Array:
         """The label vector (L,) of `h` in `columns` order, every column consistent with
@@ -1441,6 +1466,7 @@ def refine(
     )  # fmt: skip
     best = _refit_sizes(best, observed, camera, category, columns, parts, lower, upper)
     best = hinge_turn(best, observed, camera, category, columns, parts, covered, lower, upper)
+    best = hinge_width(best, observed, camera, category, columns, parts)
     # a quarter turn, when no test found a front's features on the chosen front
     turned = [] if named_by else _turned(best, observed, camera, category, columns, parts,
                                          lower, upper)  # fmt: skip
@@ -1792,6 +1818,65 @@ def hinge_turn(
     if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
         return best
     return _kept(best, fitted, residual, label)
+
+
+def hinge_width(
+    best: Candidate,
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    parts: PartsConfig,
+) -> Candidate:
+    """The chosen candidate of a category whose door has a control panel beside it
+    (`PANEL_HELD`) with its width searched on the depth residual, the panel's side held
+    and the hinge's side moved (the base moved across by half the change, the door's yaw
+    and q held): the width read off the far side's edge (`_refit_sizes`) leaves the hinge
+    where that width puts it, and the panel's side is where the image shows it while the
+    hinge's is not. A cabinet's door spans its whole front, and where its yaw and q are
+    split wrong the hinge moved on the residual makes up for the turn instead of reading
+    the width (docs/reproduction.md: no better on the cabinet). Each width
+    (`HINGE_WIDTH_SPAN` each way, every `SEARCH_STEP`, then a fifth of it) is drawn from
+    the candidate's object stretched to it (`PosedRenderer.render_stretched`: no object
+    built per width); the width found is built and kept when its depth residual on the
+    built object is lower (one more build; the yaw and q the mixture's interval judges
+    are held)."""
+    h = best.hypothesis
+    if h is None or category not in PANEL_HELD:
+        return best
+    c, s = math.cos(h.yaw), math.sin(h.yaw)  # the object's y in the camera frame: (-s, c)
+    renderer = PosedRenderer(h, category, parts, camera)
+    try:
+        hinge = 1.0 if float(renderer.doors[0].origin[1]) > 0 else -1.0  # its side along y
+
+        def wider(d: float) -> Hypothesis:
+            shift = hinge * d / 2
+            return dataclasses.replace(h, width=h.width + d, x=h.x - shift * s, y=h.y + shift * c)
+
+        def residuals(values: Array) -> list[float]:
+            images = renderer.render_stretched([wider(float(d)) for d in values])
+            return [depth_residual(image.depth, observed) for image in images]
+
+        low = max(-HINGE_WIDTH_SPAN, MIN_WIDTH - h.width)
+        d = _search(residuals, low, HINGE_WIDTH_SPAN, SEARCH_STEP)
+    finally:
+        renderer.close()
+    if d == 0.0:
+        return best
+    moved = wider(d)
+    try:
+        built = PosedRenderer(moved, category, parts, camera)
+    except ValueError:  # a width the builder refuses
+        return best
+    try:
+        image, _ = built.render(moved)
+        residual = depth_residual(image.depth, observed)
+        label = built.label(moved, category, columns)
+    finally:
+        built.close()
+    if not residual < best.residual:
+        return best
+    return _kept(best, moved, residual, label)
 
 
 def _overlay_front(

@@ -18,7 +18,11 @@ the geometry id of a hit names the link, i.e. the part id. Only the rays inside 
 image rectangle bounding a group's projected vertices are cast against it (a ray outside
 cannot hit); when a vertex is at or behind the camera plane, every ray is. `render_many`
 casts the rays of all of an object's configurations against a group in one call, and a
-group that keeps its pose (the body) is cast once.
+group that keeps its pose (the body) is cast once. `render_posed(..., stretches=...)` draws
+the object with its body frame scaled along its axes (each group's mesh scaled in its own
+frame, its joint's origin moved with the body): another depth, width or height from the
+same scenes, approximately (walls, gaps and a door's thickness scale with the body), for
+searches over an object's size that would otherwise build an object per size.
 """
 
 from __future__ import annotations
@@ -50,6 +54,8 @@ PARALLEL_RAYS = 1 << 12
 
 #: one image's hits on a group: window rows, cols, distance (inf: none), part id + 1 (0: none)
 _Hits = tuple[slice, slice, NDArray[np.float32], NDArray[np.uint8]]
+#: a group's scale in its own frame (3, 3), applied to its mesh before its pose; None: none
+_Stretch = NDArray[np.float64] | None
 
 
 @dataclass
@@ -65,8 +71,8 @@ class _Group:
     planes: NDArray[np.float64]
     first: NDArray[np.int64]
     norms: NDArray[np.float64]  # each plane's |n|
-    #: the last single-pose cast and its pose, reused while the group does not move
-    last: tuple[NDArray[np.float64], _Hits] | None = None
+    #: the last single-pose cast, its pose and stretch, reused while the group does not move
+    last: tuple[NDArray[np.float64], NDArray[np.float64] | None, _Hits] | None = None
 
 
 def rigid_groups(obj: ArticulatedObject) -> list[list[int]]:
@@ -87,6 +93,51 @@ def rigid_groups(obj: ArticulatedObject) -> list[list[int]]:
     return list(groups.values())
 
 
+def _stretch(rotation: NDArray[np.float64], scale: NDArray[np.float64]) -> _Stretch:
+    """A link's scale in its own frame (3, 3) when the body frame is scaled by `scale`
+    (3,): R^T diag(scale) R for the link's rest `rotation` R in the body frame; None for
+    a scale of ones."""
+    if np.all(scale == 1.0):
+        return None
+    return np.asarray(rotation.T @ np.diag(scale) @ rotation)
+
+
+def _same(
+    pose: NDArray[np.float64], stretch: _Stretch,
+    other: NDArray[np.float64], other_stretch: _Stretch,
+) -> bool:  # fmt: skip
+    """Whether two placements (pose and stretch) of a group are the same."""
+    if stretch is None or other_stretch is None:
+        same_stretch = stretch is None and other_stretch is None
+    else:
+        same_stretch = np.array_equal(stretch, other_stretch)
+    return bool(same_stretch and np.array_equal(pose, other))
+
+
+def stretched_link_poses(
+    obj: ArticulatedObject,
+    base_pose: NDArray[np.float64],
+    configuration: NDArray[np.float64],
+    stretches: Sequence[_Stretch],
+) -> list[NDArray[np.float64]]:
+    """Forward kinematics (`ArticulatedObject.link_poses`) of `obj` at `base_pose` with
+    each link's frame scaled by `stretches` (one per link, `_stretch`): a joint's origin
+    moves with its parent's scale (a door's hinge with the body's width), its rotation
+    and motion do not."""
+    values = iter(np.asarray(configuration, dtype=np.float64).reshape(-1).tolist())
+    index = {link.name: i for i, link in enumerate(obj.links)}
+    poses: dict[str, NDArray[np.float64]] = {obj.links[0].name: base_pose}
+    for joint in obj.joints:
+        value = 0.0 if joint.type == "fixed" else next(values)
+        scale = stretches[index[joint.parent]]
+        origin = joint.origin.copy()
+        if scale is not None:
+            origin[:3, 3] = scale @ origin[:3, 3]
+        moved = dataclasses.replace(joint, origin=origin)
+        poses[joint.child] = moved.child_pose(poses[joint.parent], value)
+    return [poses[link.name] for link in obj.links]
+
+
 def triangle_planes(corners: NDArray[np.float64]) -> NDArray[np.float64]:
     """(T, 3, 3) triangle corners -> (T, 4) planes (n, c) with n . x = c (n unnormalised:
     only ratios of it are used), in elementwise float64 arithmetic."""
@@ -104,6 +155,14 @@ def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
+def _linear(pose: NDArray[np.float64], stretch: _Stretch) -> NDArray[np.float64]:
+    """(3, 3) L taking a camera-frame direction d into the group's mesh frame as d @ L (and
+    a mesh plane's normal n into the camera frame as L n): the pose's rotation R, or
+    R M^-1 for a group scaled by the symmetric M in its own frame."""
+    rotation = pose[:3, :3]
+    return rotation if stretch is None else rotation @ np.linalg.inv(stretch)
+
+
 def _plane_distances(
     group: _Group,
     poses: NDArray[np.float64],
@@ -114,7 +173,8 @@ def _plane_distances(
     t_embree: NDArray[np.float32],
 ) -> NDArray[np.float32]:
     """The depth of each camera ray (direction (1, dy, dz); `across`: (dy, dz), float64),
-    cast at the group's pose `poses[pose_of_ray]` ((P, 4, 4) group to camera), on the
+    cast at the group's pose `poses[pose_of_ray]` ((P, 4, 4) group to camera; a stretched
+    group's carries `_linear`'s R M^-1 in place of its rotation, as normals move by it), on the
     plane of the triangle Embree hit, in float64 rounded to float32 (inf where Embree
     found none). The group's triangle planes are moved into the camera frame at each pose
     (n' = R n, c' = c + n' . t; elementwise, a fixed order) and the depth is c' / (n' . d),
@@ -208,25 +268,43 @@ class RaycastBackend(BackendBase):
         obj: ArticulatedObject,
         base_poses: Sequence[NDArray[np.float64]],
         configurations: NDArray[np.float64],
+        stretches: NDArray[np.float64] | None = None,
     ) -> list[RenderedImage]:
         """The images of `obj` at each (4, 4) base pose with its configuration (one row of
         `configurations` each), cast together as `render_many`'s: the same images as
-        rendering `dataclasses.replace(obj, base_pose=...)` one at a time."""
+        rendering `dataclasses.replace(obj, base_pose=...)` one at a time. `stretches`
+        (N, 3): each image's scale of the body frame's x, y, z (module docstring); a row
+        of ones gives the unstretched image."""
         qs = np.asarray(configurations, dtype=np.float64).reshape(len(configurations), -1)
-        poses = [dataclasses.replace(obj, base_pose=base).link_poses(q)
-                 for base, q in zip(base_poses, qs, strict=True)]  # fmt: skip
-        return self._render_link_poses(obj, poses)
+        if stretches is None:
+            poses = [dataclasses.replace(obj, base_pose=base).link_poses(q)
+                     for base, q in zip(base_poses, qs, strict=True)]  # fmt: skip
+            return self._render_link_poses(obj, poses)
+        scales = np.asarray(stretches, dtype=np.float64).reshape(len(qs), 3)
+        rest = obj.link_poses(np.zeros(obj.dof))
+        to_body = [invert(obj.base_pose) @ pose for pose in rest]
+        frames = [[_stretch(b[:3, :3], scale) for b in to_body] for scale in scales]
+        poses = [stretched_link_poses(obj, base, q, f)
+                 for base, q, f in zip(base_poses, qs, frames, strict=True)]  # fmt: skip
+        return self._render_link_poses(obj, poses, frames)
 
     def _render_link_poses(
-        self, obj: ArticulatedObject, poses: list[list[NDArray[np.float64]]]
+        self,
+        obj: ArticulatedObject,
+        poses: list[list[NDArray[np.float64]]],
+        stretches: list[list[_Stretch]] | None = None,
     ) -> list[RenderedImage]:
-        """One image per entry of `poses` (each: every link's camera-frame pose)."""
+        """One image per entry of `poses` (each: every link's camera-frame pose), each
+        link's frame scaled by `stretches` (the same shape; None: none)."""
         n, shape = len(poses), (self.camera.height, self.camera.width)
         depth = np.full((n, *shape), np.inf, dtype=np.float32)
         mask = np.zeros((n, *shape), dtype=np.uint8)
         for group in self._scenes(obj):
             group_poses = [p[group.root] for p in poses]
-            for k, (rows, cols, t, parts) in enumerate(self._cast(group, group_poses)):
+            scaled: list[_Stretch] = (
+                [None] * n if stretches is None else [f[group.root] for f in stretches]
+            )
+            for k, (rows, cols, t, parts) in enumerate(self._cast(group, group_poses, scaled)):
                 if t.size == 0:
                     continue
                 nearer = t < depth[k, rows, cols]
@@ -235,22 +313,33 @@ class RaycastBackend(BackendBase):
         depth[depth == np.inf] = 0.0
         return [RenderedImage(d, m) for d, m in zip(depth, mask, strict=True)]
 
-    def _cast(self, group: _Group, poses: list[NDArray[np.float64]]) -> list[_Hits]:
-        """The group's hits at each pose: one cast_rays call for all poses. A group that
-        keeps one pose (the body) is cast once, or not at all if it has not moved since
-        the previous call."""
-        if all(np.array_equal(p, poses[0]) for p in poses[1:]):
-            if group.last is None or not np.array_equal(group.last[0], poses[0]):
-                group.last = (poses[0], self._cast_poses(group, poses[:1])[0])
-            return [group.last[1]] * len(poses)
-        return self._cast_poses(group, poses)
+    def _cast(
+        self, group: _Group, poses: list[NDArray[np.float64]], stretches: list[_Stretch]
+    ) -> list[_Hits]:
+        """The group's hits at each pose (and stretch): one cast_rays call for all poses.
+        A group that keeps one pose (the body) is cast once, or not at all if it has not
+        moved since the previous call."""
+        if all(_same(p, m, poses[0], stretches[0]) for p, m in zip(poses, stretches, strict=True)):
+            last = group.last
+            if last is None or not _same(last[0], last[1], poses[0], stretches[0]):
+                hits = self._cast_poses(group, poses[:1], stretches[:1])[0]
+                last = group.last = (poses[0], stretches[0], hits)
+            return [last[2]] * len(poses)
+        return self._cast_poses(group, poses, stretches)
 
-    def _cast_poses(self, group: _Group, poses: list[NDArray[np.float64]]) -> list[_Hits]:
-        windows = [self._window(transform_points(p, group.vertices)) for p in poses]
+    def _cast_poses(
+        self, group: _Group, poses: list[NDArray[np.float64]], stretches: list[_Stretch]
+    ) -> list[_Hits]:
+        windows = [self._window(transform_points(p, group.vertices if m is None
+                                                 else group.vertices @ m))
+                   for p, m in zip(poses, stretches, strict=True)]  # fmt: skip
         out: list[_Hits] = []
         batch: list[tuple[slice, slice, NDArray[np.float64]]] = []
         size = 0
-        for (rows, cols), pose in zip(windows, poses, strict=True):
+        for (rows, cols), pose, stretch in zip(windows, poses, stretches, strict=True):
+            if stretch is not None:  # rays and normals move by R M^-1 (`_linear`)
+                pose = pose.copy()
+                pose[:3, :3] = _linear(pose, stretch)
             batch.append((rows, cols, pose))
             size += (rows.stop - rows.start) * (cols.stop - cols.start)
             if size >= RAYS_PER_CALL:
