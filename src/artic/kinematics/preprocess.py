@@ -111,7 +111,7 @@ class InputPipeline:
             *RELATIVE_RANGE
         )
         image = torch.where(crop > 0, relative, torch.zeros_like(crop))
-        rays = torch.from_numpy(cam.ray_directions())  # depth * ray = the pixel's point
+        rays = torch.from_numpy(cam.ray_directions().copy())  # depth * ray = the pixel's point
         y = (z * rays[..., 1]).sum((1, 2)) / count
         up = (z * rays[..., 2]).sum((1, 2)) / count
         side = torch.stack(
