@@ -124,18 +124,16 @@ def stretched_link_poses(
     each link's frame scaled by `stretches` (one per link, `_stretch`): a joint's origin
     moves with its parent's scale (a door's hinge with the body's width), its rotation
     and motion do not."""
-    values = iter(np.asarray(configuration, dtype=np.float64).reshape(-1).tolist())
     index = {link.name: i for i, link in enumerate(obj.links)}
-    poses: dict[str, NDArray[np.float64]] = {obj.links[0].name: base_pose}
+    joints = []
     for joint in obj.joints:
-        value = 0.0 if joint.type == "fixed" else next(values)
         scale = stretches[index[joint.parent]]
         origin = joint.origin.copy()
         if scale is not None:
             origin[:3, 3] = scale @ origin[:3, 3]
-        moved = dataclasses.replace(joint, origin=origin)
-        poses[joint.child] = moved.child_pose(poses[joint.parent], value)
-    return [poses[link.name] for link in obj.links]
+        joints.append(dataclasses.replace(joint, origin=origin))
+    moved = dataclasses.replace(obj, joints=tuple(joints), base_pose=base_pose)
+    return moved.link_poses(configuration)
 
 
 def triangle_planes(corners: NDArray[np.float64]) -> NDArray[np.float64]:
