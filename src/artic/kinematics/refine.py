@@ -326,6 +326,10 @@ HANDLE_FREE = 0.65
 #: the categories with a control panel beside the door's free edge, flush with the closed
 #: door's front (`panel_side`)
 PANEL_BESIDE = ("microwave",)
+#: `_other_side` tries the other hinge side of a door beside a control panel from the best
+#: candidate's pose only when its door is open less than this (rad): shut, both sides'
+#: doors are the same flat front
+PANEL_MIRROR_Q_MAX = math.radians(5.0)
 #: in `panel_side`, how far a candidate's control panel reads recessed: the median of
 #: (observed - rendered) depth over its pixels (the middle `PANEL_ROWS` of its height,
 #: at least `MIN_PANEL_PIXELS`); a side is named when the other side's panel reads
@@ -1444,8 +1448,9 @@ def refine(
             estimate, False, f"fallback: the refinement failed ({str(err).splitlines()[0]})",
             math.nan, math.nan, none,
         )  # fmt: skip
+    weight = side_weight(network.chirality, weights, means, columns)
     candidates.extend(_other_side(candidates, observed, camera, category, columns, parts,
-                                  lower, upper, covered))  # fmt: skip
+                                  lower, upper, covered, (network.chirality, weight)))  # fmt: skip
     inside = [c for c in candidates if c.inside_interval]
     overlay = False
     if network.joint_type == "prismatic":
@@ -1461,8 +1466,8 @@ def refine(
                           tuple(candidates))  # fmt: skip
     image, view = detail if detail is not None else (observed, camera)
     best, named_by = _pick_side(
-        inside, network.chirality, side_weight(network.chirality, weights, means, columns),
-        columns, category, parts, (image, view), (observed, camera),
+        inside, network.chirality, weight, columns, category, parts, (image, view),
+        (observed, camera),
     )  # fmt: skip
     best = _refit_sizes(best, observed, camera, category, columns, parts, lower, upper)
     best = hinge_turn(best, observed, camera, category, columns, parts, covered, lower, upper)
@@ -1542,6 +1547,7 @@ def _other_side(
     lower: Array,
     upper: Array,
     covered: Collection[int] = (1, -1),
+    network_side: tuple[int, float] = (1, 0.5),
 ) -> list[Candidate]:
     """The lowest-residual candidate inside the interval, refined again from its own pose
     and q on the other hinge side (`Hypothesis.mirrored`), as one more candidate judged as
@@ -1550,16 +1556,32 @@ def _other_side(
     one side can all stay in a worse pose than the other side's best (a door the image
     shows closed held open, the yaw a few degrees off), and then the other side wins by
     more than `_choose_side`'s margin though the image cannot tell the sides apart (a
-    closed door's mirror image fits as well); from the same pose both sides meet. Not for
-    a door beside a control panel (`PANEL_BESIDE`): there the other side's door is
-    another front, not the same box's mirror image, and its start from this pose is no
-    better than the others (measured: docs/kinematics.md)."""
+    closed door's mirror image fits as well); from the same pose both sides meet.
+
+    A door beside a control panel (`PANEL_BESIDE`) only when the other side would win
+    (`_choose_side` with `network_side`: the network's side and the mixture's weight on
+    it) with its door open less than `PANEL_MIRROR_Q_MAX`, and then scored at that very
+    pose on the network's side (no rounds): shut, both sides' doors are the same flat
+    front. An opened door there has another front on the other side, not the same box's
+    mirror image, and its start from this pose is no better than the others; rounds from
+    a shut door's pose can drift to a reading of the box's side as its front; and where
+    the network's side stands anyway, the mirror of the other side's best can only turn a
+    tie between two readings of a square box (measured: docs/kinematics.md)."""
     inside = [c for c in candidates if c.inside_interval and c.hypothesis is not None]
-    if category not in SIDED or category in PANEL_BESIDE or not inside:
+    if category not in SIDED or not inside:
         return []
-    best = min(inside, key=lambda c: c.residual)
-    assert best.hypothesis is not None
-    result = _rounds_from(best.hypothesis.mirrored(), observed, camera, category, columns, parts)
+    if category in PANEL_BESIDE:
+        best = _choose_side(inside, *network_side)
+        assert best.hypothesis is not None
+        start = best.hypothesis.mirrored()
+        if best.chirality == network_side[0] or max(abs(q) for q in start.qs) >= PANEL_MIRROR_Q_MAX:
+            return []
+        result = _scored(start, observed, camera, category, columns, parts)
+    else:
+        best = min(inside, key=lambda c: c.residual)
+        assert best.hypothesis is not None
+        result = _rounds_from(best.hypothesis.mirrored(), observed, camera, category, columns,
+                              parts)  # fmt: skip
     if result is None:
         return []
     fitted, residual, label = result
@@ -2034,6 +2056,27 @@ def _rounds_from(
     try:
         fitted, residual = refine_hypothesis(start, renderer, observed, camera.ray_directions())
         return fitted, residual, renderer.label(fitted, category, columns)
+    finally:
+        renderer.close()
+
+
+def _scored(
+    h: Hypothesis,
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    parts: PartsConfig,
+) -> tuple[Hypothesis, float, Array] | None:
+    """`h` as it is, its residual and its label, as `_rounds_from` returns a fit (one build,
+    one image); None for a geometry the builder refuses."""
+    try:
+        renderer = PosedRenderer(h, category, parts, camera)
+    except ValueError:
+        return None
+    try:
+        image, _ = renderer.render(h)
+        return h, depth_residual(image.depth, observed), renderer.label(h, category, columns)
     finally:
         renderer.close()
 
