@@ -40,7 +40,8 @@ hinge sides (each component's chirality and the other, all else equal; for the t
 component also its mirror image about the line of sight, `Hypothesis.reflected`: a
 network trained on one side may read an object hinged on the other side as that; and
 the best of these again on the other side from its own pose, `_other_side`, so that
-both sides meet at the best pose found), scores every candidate by
+both sides meet at the best pose found; a microwave's only where the other side would win
+with its door shut, scored there on the network's side), scores every candidate by
 a robust depth residual (`depth_residual`: the mean over the union of the rendered and
 observed pixels of |rendered - observed| capped at `RESIDUAL_CAP`, a pixel seen in one
 image only counting the cap) and keeps the lowest, on the network's hinge side unless the
@@ -326,9 +327,9 @@ HANDLE_FREE = 0.65
 #: the categories with a control panel beside the door's free edge, flush with the closed
 #: door's front (`panel_side`)
 PANEL_BESIDE = ("microwave",)
-#: `_other_side` tries the other hinge side of a door beside a control panel from the best
-#: candidate's pose only when its door is open less than this (rad): shut, both sides'
-#: doors are the same flat front
+#: `_other_side` scores a door beside a control panel on the network's hinge side at the
+#: pose of the other side's winning candidate only when that door is open less than this
+#: (rad): shut, both sides' doors are the same flat front
 PANEL_MIRROR_Q_MAX = math.radians(5.0)
 #: in `panel_side`, how far a candidate's control panel reads recessed: the median of
 #: (observed - rendered) depth over its pixels (the middle `PANEL_ROWS` of its height,
@@ -1547,7 +1548,7 @@ def _other_side(
     lower: Array,
     upper: Array,
     covered: Collection[int] = (1, -1),
-    network_side: tuple[int, float] = (1, 0.5),
+    network_side: tuple[int, float] = (1, 0.5),  # read for `PANEL_BESIDE` only
 ) -> list[Candidate]:
     """The lowest-residual candidate inside the interval, refined again from its own pose
     and q on the other hinge side (`Hypothesis.mirrored`), as one more candidate judged as
