@@ -1571,18 +1571,14 @@ def _other_side(
     inside = [c for c in candidates if c.inside_interval and c.hypothesis is not None]
     if category not in SIDED or not inside:
         return []
-    if category in PANEL_BESIDE:
-        best = _choose_side(inside, *network_side)
-        assert best.hypothesis is not None
-        start = best.hypothesis.mirrored()
-        if best.chirality == network_side[0] or max(abs(q) for q in start.qs) >= PANEL_MIRROR_Q_MAX:
-            return []
-        result = _scored(start, observed, camera, category, columns, parts)
-    else:
-        best = min(inside, key=lambda c: c.residual)
-        assert best.hypothesis is not None
-        result = _rounds_from(best.hypothesis.mirrored(), observed, camera, category, columns,
-                              parts)  # fmt: skip
+    panel = category in PANEL_BESIDE
+    best = _choose_side(inside, *network_side) if panel else min(inside, key=lambda c: c.residual)
+    assert best.hypothesis is not None
+    start = best.hypothesis.mirrored()
+    opened = max(map(abs, start.qs)) >= PANEL_MIRROR_Q_MAX
+    if panel and (best.chirality == network_side[0] or opened):
+        return []
+    result = _rounds_from(start, observed, camera, category, columns, parts, rounds=not panel)
     if result is None:
         return []
     fitted, residual, label = result
@@ -2046,38 +2042,22 @@ def _rounds_from(
     category: str,
     columns: list[str],
     parts: PartsConfig,
+    rounds: bool = True,
 ) -> tuple[Hypothesis, float, Array] | None:
     """`refine_hypothesis`'s rounds from `start` on an object built at its geometry: the
     result, its residual and its label; None for a geometry the builder refuses (a width
-    read narrower than the object's walls)."""
+    read narrower than the object's walls). `rounds` False: `start` as it is, scored (one
+    image)."""
     try:
         renderer = PosedRenderer(start, category, parts, camera)
     except ValueError:
         return None
     try:
-        fitted, residual = refine_hypothesis(start, renderer, observed, camera.ray_directions())
+        if rounds:
+            fitted, residual = refine_hypothesis(start, renderer, observed, camera.ray_directions())
+        else:
+            fitted, residual = start, depth_residual(renderer.render(start)[0].depth, observed)
         return fitted, residual, renderer.label(fitted, category, columns)
-    finally:
-        renderer.close()
-
-
-def _scored(
-    h: Hypothesis,
-    observed: NDArray[np.float32],
-    camera: CameraIntrinsics,
-    category: str,
-    columns: list[str],
-    parts: PartsConfig,
-) -> tuple[Hypothesis, float, Array] | None:
-    """`h` as it is, its residual and its label, as `_rounds_from` returns a fit (one build,
-    one image); None for a geometry the builder refuses."""
-    try:
-        renderer = PosedRenderer(h, category, parts, camera)
-    except ValueError:
-        return None
-    try:
-        image, _ = renderer.render(h)
-        return h, depth_residual(image.depth, observed), renderer.label(h, category, columns)
     finally:
         renderer.close()
 
