@@ -1528,12 +1528,13 @@ def test_the_best_candidate_is_tried_on_the_other_side_from_its_own_pose(categor
     assert _choose_side([stuck, best], 1, side_weight=1.0) is best  # the stuck side loses
     lower, upper = _wide(best_label)
     (other,) = _other_side([stuck, best], observed, CAMERA, category, columns, PARTS,
-                           lower, upper)  # fmt: skip
+                           lower, upper, network_side=(1, 1.0))  # fmt: skip
     assert other.chirality == 1 and other.inside_interval
     assert other.residual <= best.residual * 1.05
     assert _choose_side([stuck, best, other], 1, side_weight=1.0) is other
     # no side to decide, or no candidate inside the interval: nothing more
     assert _other_side([stuck, best], observed, CAMERA, "drawer", columns, PARTS,
-                       lower, upper) == []  # fmt: skip
+                       lower, upper, network_side=(1, 1.0)) == []  # fmt: skip
     outside = [dataclasses.replace(c, inside_interval=False) for c in (stuck, best)]
-    assert _other_side(outside, observed, CAMERA, category, columns, PARTS, lower, upper) == []
+    assert _other_side(outside, observed, CAMERA, category, columns, PARTS, lower, upper,
+                       network_side=(1, 1.0)) == []  # fmt: skip

@@ -1451,7 +1451,8 @@ def refine(
         )  # fmt: skip
     weight = side_weight(network.chirality, weights, means, columns)
     candidates.extend(_other_side(candidates, observed, camera, category, columns, parts,
-                                  lower, upper, covered, (network.chirality, weight)))  # fmt: skip
+                                  lower, upper, covered,
+                                  network_side=(network.chirality, weight)))  # fmt: skip
     inside = [c for c in candidates if c.inside_interval]
     overlay = False
     if network.joint_type == "prismatic":
@@ -1548,7 +1549,8 @@ def _other_side(
     lower: Array,
     upper: Array,
     covered: Collection[int] = (1, -1),
-    network_side: tuple[int, float] = (1, 0.5),  # read for `PANEL_BESIDE` only
+    *,
+    network_side: tuple[int, float],
 ) -> list[Candidate]:
     """The lowest-residual candidate inside the interval, refined again from its own pose
     and q on the other hinge side (`Hypothesis.mirrored`), as one more candidate judged as
