@@ -14,6 +14,7 @@ from artic.kinematics.mdn import (
     densest,
     marginal_cdf,
     marginal_interval,
+    marginal_intervals,
     mdn_nll,
     mixture_log_prob,
     most_likely,
@@ -195,6 +196,32 @@ def test_marginal_cdf_matches_scipy_and_hits_the_interval_levels():
     assert lo.shape == hi.shape == (8, 3) and bool((lo < hi).all())
     torch.testing.assert_close(marginal_cdf(mix, lo), torch.full((8, 3), 0.05), atol=1e-5, rtol=0)
     torch.testing.assert_close(marginal_cdf(mix, hi), torch.full((8, 3), 0.95), atol=1e-5, rtol=0)
+
+
+def test_marginal_intervals_at_many_levels_equal_each_levels_bisection_alone():
+    """One bisection for every level's two tails (`marginal_intervals`, what `describe` and
+    `evaluate mdn` compute) gives each bound bit for bit as a bisection of its own."""
+
+    def alone(mix: Mixture, q: float) -> torch.Tensor:
+        lo = (mix.mu - 10 * mix.sigma).amin(dim=1)
+        hi = (mix.mu + 10 * mix.sigma).amax(dim=1)
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            below = marginal_cdf(mix, mid) < q
+            lo, hi = torch.where(below, mid, lo), torch.where(below, hi, mid)
+        return 0.5 * (lo + hi)
+
+    levels = (*(round(0.05 * k, 2) for k in range(1, 20)), 0.99)
+    for batch, seed in ((1, 21), (64, 22)):
+        mix = random_mixture(batch, 20, 11, seed=seed)
+        bounds = marginal_intervals(mix, levels)
+        assert list(bounds) == list(levels)
+        for level, (lo, hi) in bounds.items():
+            assert torch.equal(lo, alone(mix, 0.5 * (1 - level)))
+            assert torch.equal(hi, alone(mix, 0.5 * (1 + level)))
+    assert marginal_intervals(mix, ()) == {}
+    with pytest.raises(ValueError, match="level must be in"):
+        marginal_intervals(mix, (0.5, 1.0))
 
 
 def test_marginal_interval_is_calibrated_on_draws_from_the_mixture():

@@ -35,6 +35,7 @@ from artic.kinematics.refine import (
     _choose_side,
     _other_side,
     _ransac,
+    _search,
     about_hinge,
     depth_residual,
     flap_panel_share,
@@ -192,6 +193,38 @@ def test_hypotheses_rendered_together_are_the_images_rendered_one_at_a_time():
         assert len({image.depth.tobytes() for image in together}) == len(moves) + 1
     finally:
         renderer.close()
+
+
+def test_the_depth_residual_is_the_mean_over_the_union_of_the_capped_differences():
+    # computed on the rows and columns the union spans: the whole image's number, bit for bit
+    rng = np.random.default_rng(5)
+    observed = np.zeros((CAMERA.height, CAMERA.width), np.float32)
+    observed[30:70, 50:120] = rng.uniform(1.0, 1.4, (40, 70))
+    for _ in range(20):
+        rendered = np.zeros_like(observed)
+        top, left = rng.integers(0, 60), rng.integers(0, 150)
+        rendered[top:top + 48, left:left + 60] = rng.uniform(1.0, 1.4, (48, 60))[
+            : CAMERA.height - top, : CAMERA.width - left]  # fmt: skip
+        r, o = rendered > 0, observed > 0
+        diff = np.where(r & o, np.minimum(np.abs(rendered.astype(np.float64) - observed), 0.05),
+                        0.05)  # fmt: skip
+        assert depth_residual(rendered, observed) == float(diff[r | o].mean())
+    empty = np.zeros_like(observed)
+    assert depth_residual(empty, empty) == math.inf
+    assert depth_residual(empty, observed) == pytest.approx(0.05)
+
+
+def test_a_line_search_renders_each_value_once_and_finds_the_lowest():
+    # the fine pass's middle value is the coarse pass's best: not rendered again
+    seen: list[float] = []
+
+    def residuals(values):
+        seen.extend(float(v) for v in values)
+        return [abs(float(v) - 0.0337) for v in values]
+
+    d = _search(residuals, -0.05, 0.08, 0.01)
+    assert d == pytest.approx(0.034) and len(seen) == len(set(seen))
+    assert _search(lambda v: [1.0] * len(v), -0.05, 0.05, 0.01) == 0.0  # ties: no move
 
 
 @pytest.mark.parametrize("category", ["microwave", "cabinet"])

@@ -105,6 +105,22 @@ def test_union_mesh_merges_touching_boxes_and_box_inertia_is_analytic() -> None:
     np.testing.assert_allclose(single.inertia, expected, atol=1e-12)
 
 
+def test_union_mesh_of_the_same_boxes_again_is_an_equal_independent_copy() -> None:
+    """`union_mesh` keeps the meshes of recent boxes (the refinement builds the same parts
+    many times): a repeat gives equal arrays that are the caller's own."""
+    boxes = [Box((0.0, 0.4), (-0.3, 0.3), (0.0, 0.02)), Box((0.38, 0.4), (-0.3, 0.3), (0.0, 0.5))]
+    first = union_mesh(boxes)
+    first.vertices[:] = 9.0  # the caller's to change
+    again = union_mesh(tuple(boxes))
+    assert not np.any(again.vertices == 9.0)
+    np.testing.assert_array_equal(again.vertices, union_mesh(list(boxes)).vertices)
+    np.testing.assert_array_equal(again.triangles, union_mesh(boxes).triangles)
+    assert again.vertices.flags.writeable and again.triangles.flags.writeable
+    solid = trimesh.Trimesh(again.vertices, again.triangles)
+    assert solid.is_watertight
+    assert solid.volume == pytest.approx(0.4 * 0.6 * 0.02 + 0.02 * 0.6 * 0.48)
+
+
 @pytest.mark.parametrize(("name", "seed"), CASES)
 def test_closed_parts_lie_in_the_body_box(make_spec: SpecFactory, name: str, seed: int) -> None:
     spec = make_spec(name, seed)

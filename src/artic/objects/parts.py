@@ -12,6 +12,7 @@ body is the plane x = -depth / 2.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any, Literal, NamedTuple
 
@@ -80,6 +81,16 @@ def union_mesh(boxes: Sequence[Box]) -> TriangleMesh:
     bounds = np.round(np.array(boxes, dtype=np.float64), _DECIMALS)  # (B, 3, 2)
     if np.any(bounds[:, :, 0] >= bounds[:, :, 1]):
         raise ValueError("every box needs min < max along each axis")
+    vertices, triangles = _union_arrays(bounds.tobytes(), len(bounds))
+    return TriangleMesh(vertices=vertices.copy(), triangles=triangles.copy())
+
+
+@functools.lru_cache(maxsize=512)
+def _union_arrays(bounds_bytes: bytes, count: int) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
+    """`union_mesh`'s vertices and triangles of `count` boxes' rounded bounds (B, 3, 2),
+    given as bytes: kept for the last 512 sets of boxes (the refinement builds objects of
+    the same few parts, each handle and door many times over), never handed out (copies)."""
+    bounds = np.frombuffer(bounds_bytes, dtype=np.float64).reshape(count, 3, 2)
     grids = [np.unique(bounds[:, axis, :]) for axis in range(3)]
     centres = [0.5 * (g[:-1] + g[1:]) for g in grids]
     occupied = np.zeros(tuple(len(c) for c in centres), dtype=bool)
@@ -91,8 +102,10 @@ def union_mesh(boxes: Sequence[Box]) -> TriangleMesh:
     faces = faces.reshape(-1, 4)
     corner = np.stack(np.unravel_index(used, tuple(len(g) for g in grids)), axis=1)
     vertices = np.stack([grids[a][corner[:, a]] for a in range(3)], axis=1).astype(np.float64)
-    triangles = np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
-    return TriangleMesh(vertices=vertices, triangles=triangles.astype(np.int32))
+    triangles = np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]]).astype(np.int32)
+    vertices.setflags(write=False)
+    triangles.setflags(write=False)
+    return vertices, triangles
 
 
 def _boundary_quads(padded: NDArray[np.bool_], grid_shape: tuple[int, ...]) -> NDArray[np.int64]:

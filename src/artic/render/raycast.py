@@ -328,9 +328,7 @@ class RaycastBackend(BackendBase):
     def _cast_poses(
         self, group: _Group, poses: list[NDArray[np.float64]], stretches: list[_Stretch]
     ) -> list[_Hits]:
-        windows = [self._window(transform_points(p, group.vertices if m is None
-                                                 else group.vertices @ m))
-                   for p, m in zip(poses, stretches, strict=True)]  # fmt: skip
+        windows = self._windows(group.vertices, poses, stretches)
         out: list[_Hits] = []
         batch: list[tuple[slice, slice, NDArray[np.float64]]] = []
         size = 0
@@ -387,16 +385,36 @@ class RaycastBackend(BackendBase):
             start = stop
         return out
 
-    def _window(self, points: NDArray[np.float64]) -> tuple[slice, slice]:
-        """Rows and columns of the pixels whose rays may hit the convex hull of `points`."""
-        h, w = self.camera.height, self.camera.width
-        if points[:, 0].min() <= 1e-6:  # at or behind the camera plane
-            return slice(0, h), slice(0, w)
-        uv = self.camera.project(points)
-        u0, v0 = uv.min(axis=0).tolist()
-        u1, v1 = uv.max(axis=0).tolist()
-        rows = slice(max(math.floor(v0) - 1, 0), min(math.ceil(v1) + 2, h))
-        return rows, slice(max(math.floor(u0) - 1, 0), min(math.ceil(u1) + 2, w))
+    def _windows(
+        self, vertices: NDArray[np.float64], poses: list[NDArray[np.float64]],
+        stretches: list[_Stretch],
+    ) -> list[tuple[slice, slice]]:  # fmt: skip
+        """Rows and columns of the pixels whose rays may hit the convex hull of `vertices`
+        (V, 3) at each pose (and stretch), a pixel's margin around its projection (so a
+        last bit of rounding in the projection never drops a pixel a ray can hit): all
+        poses' points at once."""
+        h, w, cam = self.camera.height, self.camera.width, self.camera
+        if any(m is not None for m in stretches):
+            points = np.stack([transform_points(p, vertices if m is None else vertices @ m)
+                               for p, m in zip(poses, stretches, strict=True)])  # fmt: skip
+        else:
+            stack = np.stack(poses)
+            points = vertices @ stack[:, :3, :3].transpose(0, 2, 1) + stack[:, None, :3, 3]
+        x = points[..., 0]
+        behind = x.min(axis=1) <= 1e-6  # at or behind the camera plane
+        x = np.where(behind[:, None], 1.0, x)
+        u = cam.cx - cam.fx * points[..., 1] / x
+        v = cam.cy - cam.fy * points[..., 2] / x
+        out = []
+        for k, (u0, u1, v0, v1) in enumerate(zip(u.min(axis=1).tolist(), u.max(axis=1).tolist(),
+                                                 v.min(axis=1).tolist(), v.max(axis=1).tolist(),
+                                                 strict=True)):  # fmt: skip
+            if behind[k]:
+                out.append((slice(0, h), slice(0, w)))
+                continue
+            rows = slice(max(math.floor(v0) - 1, 0), min(math.ceil(v1) + 2, h))
+            out.append((rows, slice(max(math.floor(u0) - 1, 0), min(math.ceil(u1) + 2, w))))
+        return out
 
     def close(self) -> None:
         self._object, self._groups = None, []
