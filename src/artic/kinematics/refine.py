@@ -247,6 +247,10 @@ WIDTH_BAND = 0.03
 #: the quantile across the front taken as its far edge's last pixel, and the fewest points
 WIDTH_QUANTILE = 0.99
 MIN_WIDTH_POINTS = 100
+#: a door fixes the width (`_fit_width`: its plane through its hinge at the body's side)
+#: when open at least this far; one nearer shut lies along the front, its hinge's place
+#: across is the width prior's, and the front's far edge gives the width (`front_width`)
+WIDTH_DOOR_Q = math.radians(10.0)
 #: a flap opened at least this far stands out of the front: its depth changes along its
 #: height, which fixes the base height (`search_height`), and its edge shows beside the
 #: control panel (`flap_panel_share`); a closed one's front is flat
@@ -1490,7 +1494,7 @@ def refine(
         candidates.extend(turned)
         # ... and a handle on the turned candidates' front (a side face has none; the other
         # hinge-side tests admit no turn: `TURN_MARGIN`), the side it names the turn's
-        side = handle_side(turned, columns, category, parts, image, view)
+        side = handle_side(turned, columns, category, parts, image, view, (observed, camera))
         other = min([c for c in turned if c.chirality == side] or turned, key=lambda c: c.residual)
         if side is not None and other.residual < (1.0 - TURN_MARGIN) * best.residual:
             best, named_by = other, HANDLE_TEST
@@ -1527,7 +1531,7 @@ def _pick_side(
     observed, camera = model_view
     tests: tuple[tuple[str, Callable[[], int | None]], ...] = (
         (HANDLE_TEST,
-         lambda: handle_side(candidates, columns, category, parts, image, view)),
+         lambda: handle_side(candidates, columns, category, parts, image, view, model_view)),
         ("the front's shape",
          lambda: front_side(candidates, columns, category, parts, image, view)),
         ("the control panel's side",
@@ -2077,9 +2081,13 @@ def _fit_width(h: Hypothesis, faces: _Faces, doors: Sequence[_Door]) -> Hypothes
     """The base position (x, y) and the width by least squares, the yaw and q held: the
     body's front on x = -depth/2, a side on y = +-width/2 and each door on its plane
     through its hinge at +-width/2 (object frame), with `_fit`'s pull towards the
-    hypothesis (the width's too). None without a side face and a door face to fix it."""
+    hypothesis (the width's too). None without a side face and a door face to fix it: one
+    with `MIN_DOOR_POINTS` inliers opened `WIDTH_DOOR_Q` or more (a door nearer shut lies
+    along the front, and the width would be the prior's)."""
     inl_front, inl_side, inl_doors = _face_inliers(faces, 0)
-    if inl_side.sum() < MIN_FACE_POINTS or not any(k.sum() >= MIN_DOOR_POINTS for k in inl_doors):
+    opened = [k.sum() >= MIN_DOOR_POINTS and q >= WIDTH_DOOR_Q
+              for k, q in zip(inl_doors, h.qs, strict=True)]  # fmt: skip
+    if inl_side.sum() < MIN_FACE_POINTS or not any(opened):
         return None
     rot = rot_z(h.yaw)
     a, b = rot[:, 0], rot[:, 1]
@@ -2218,21 +2226,49 @@ def handle_side(
     parts: PartsConfig,
     depth: NDArray[np.floating],
     camera: CameraIntrinsics,
+    model_view: tuple[NDArray[np.float32], CameraIntrinsics] | None = None,
 ) -> int | None:
     """The hinge side the handle names (module docstring). Each side's lowest-residual
     candidate whose door is open less than `HANDLE_Q_MAX` and whose residual is within
     `HANDLE_RESIDUAL` times the lowest votes: for its own side when its door has the
     handle (`handle_position`) in its free part (at least `HANDLE_FREE` of the way from
     the hinge), for the other when it has it by the hinge (at most 1 - `HANDLE_FREE`). A
-    side is named when every vote is for it; None without a vote or with split votes."""
+    side is named when every vote is for it; None without a vote or with split votes.
+    `model_view` (the image in the model's camera, as the candidates were scored): each
+    hypothesis with the width its front shows where that fits the image better
+    (`_front_read`): a door's handle lies at its free edge, which a width read 10-20 cm
+    too wide moves off it (a box turned 35-45 deg); None: the candidates' widths."""
     votes = set()
     for side, h in _nearly_closed(candidates, columns, HANDLE_Q_MAX).items():
+        if model_view is not None:
+            own = min(c.residual for c in candidates if c.chirality == side)
+            h = _front_read(h, own, category, columns, parts, *model_view)
         at = handle_position(h, category, parts, depth, camera)
         if at is not None and at >= HANDLE_FREE:
             votes.add(side)
         elif at is not None and at <= 1.0 - HANDLE_FREE:
             votes.add(-side)
     return votes.pop() if len(votes) == 1 else None
+
+
+def _front_read(
+    h: Hypothesis,
+    residual: float,
+    category: str,
+    columns: list[str],
+    parts: PartsConfig,
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+) -> Hypothesis:
+    """`h` (of depth residual `residual` in `camera`) with the width its front shows
+    (`front_width`), when that, built and scored as it is (one build, one image), has a
+    lower depth residual than `residual`; else `h`. The front's far edge misreads a door
+    opened a few degrees past the front's band, which the residual turns down."""
+    read = front_width(h, observed, camera, parts.door_thickness)
+    if read is None:
+        return h
+    scored = _rounds_from(read, observed, camera, category, columns, parts, rounds=False)
+    return read if scored is not None and scored[1] < residual else h
 
 
 def panel_recess(
