@@ -79,7 +79,7 @@ as often as that of a side-first one), so a turned candidate has a test of its o
 kept only when no hinge-side test (below) found a front's features (a handle, the front's
 step, the control panel or its seam) on the chosen candidate's front, the handle test
 found a handle on the turned candidates' front (`handle_side`; a side face has none), and
-its residual is lower by `TURN_MARGIN`. Its yaw is outside the mixture's interval by
+its residual is lower. Its yaw is outside the mixture's interval by
 construction; its q is held to it. The status says "turned a quarter".
 
 On a nearly closed door (every door, for a refrigerator) the handle then has the last word
@@ -273,12 +273,12 @@ EDGE_QUANTILE = 0.25
 #: when the mixture puts all its weight on the network's side; the margin shrinks with that
 #: weight w as SIDE_MARGIN (2 w - 1), to 0 for a mixture split evenly between the sides
 SIDE_MARGIN = 0.25
-#: a quarter-turned candidate (`_turned`) replaces the chosen one when its residual is lower
-#: by this fraction and the handle test (`handle_side`) names its side (not the other
-#: hinge-side tests: a control panel's recess was once found on a second-generator
-#: microwave's side face, and none of them ever turned a box right), and is tried only when
-#: its front faces the camera within `TURN_INCIDENCE` (rad)
-TURN_MARGIN = 0.15
+#: a quarter-turned candidate (`_turned`) is tried only when its front faces the camera
+#: within this (rad); it replaces the chosen one when the handle test (`handle_side`) names
+#: its side and its residual is lower (not the other hinge-side tests: a control panel's
+#: recess was once found on a second-generator microwave's side face, and none of them ever
+#: turned a box right; until 2026-12-07 also lower by 15%, which kept side-first readings
+#: whose turn fitted 5-14% better and turned none wrong)
 TURN_INCIDENCE = math.radians(70.0)
 #: the handle test's name in a refinement's status
 HANDLE_TEST = "the handle's side"
@@ -1493,10 +1493,10 @@ def refine(
     if turned:
         candidates.extend(turned)
         # ... and a handle on the turned candidates' front (a side face has none; the other
-        # hinge-side tests admit no turn: `TURN_MARGIN`), the side it names the turn's
+        # hinge-side tests admit no turn: `TURN_INCIDENCE`), the side it names the turn's
         side = handle_side(turned, columns, category, parts, image, view, (observed, camera))
         other = min([c for c in turned if c.chirality == side] or turned, key=lambda c: c.residual)
-        if side is not None and other.residual < (1.0 - TURN_MARGIN) * best.residual:
+        if side is not None and other.residual < best.residual:
             best, named_by = other, HANDLE_TEST
     if not best.residual < residual_network:
         status = "fallback: no candidate has a lower depth residual than the network's estimate"
