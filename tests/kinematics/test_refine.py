@@ -36,6 +36,7 @@ from artic.kinematics.refine import (
     _other_side,
     _ransac,
     _refit_sizes,
+    _rounds_from,
     _search,
     about_hinge,
     depth_residual,
@@ -1152,13 +1153,10 @@ def _shut_turned_microwave(chirality: int, yaw: float = 0.66) -> tuple[Hypothesi
 
 
 def _scored(h: Hypothesis, category: str, observed: np.ndarray) -> Candidate:
-    renderer = PosedRenderer(h, category, PARTS, CAMERA)
-    try:
-        residual = depth_residual(renderer.render(h)[0].depth, observed)
-        label = renderer.label(h, category, COLUMNS)
-        return Candidate(0, 0.5, h.chirality, residual, True, label, h)
-    finally:
-        renderer.close()
+    scored = _rounds_from(h, observed, CAMERA, category, COLUMNS, PARTS, rounds=False)
+    assert scored is not None
+    _, residual, label = scored
+    return Candidate(0, 0.5, h.chirality, residual, True, label, h)
 
 
 @pytest.mark.parametrize("chirality", [1, -1])
