@@ -229,6 +229,23 @@ def test_a_line_search_renders_each_value_once_and_finds_the_lowest():
     assert _search(lambda v: [1.0] * len(v), -0.05, 0.05, 0.01) == 0.0  # ties: no move
 
 
+def test_a_line_search_with_three_levels_ends_a_fifth_finer_with_fewer_renders():
+    # a drawer's opening (`OPENING_STEP`, `OPENING_LEVELS`): 2 cm, 4 mm, 0.8 mm over 60 cm
+    def search(step: float, levels: int) -> tuple[float, list[float]]:
+        seen: list[float] = []
+
+        def residuals(values):
+            seen.extend(float(v) for v in values)
+            return [abs(float(v) - 0.4337) for v in values]
+
+        return _search(residuals, 0.0, 0.6, step, levels=levels), seen
+
+    d, seen = search(0.02, 3)
+    assert abs(d - 0.4337) <= 0.0004 and len(seen) == len(set(seen)) <= 31 + 16
+    d, two_levels = search(0.01, 2)
+    assert abs(d - 0.4337) <= 0.001 and len(two_levels) >= len(seen) + 20
+
+
 @pytest.mark.parametrize("category", ["microwave", "cabinet"])
 @pytest.mark.parametrize("chirality", [1, -1])
 @pytest.mark.parametrize("q", [0.25, 1.1])
