@@ -225,7 +225,7 @@ Q_PRIOR_WEIGHT = 0.01
 SEARCH_STEP = 0.01
 #: the first step of the search along a drawer's opening (m), and its levels: that line
 #: runs the drawer's whole depth (up to 64 cm), so every 2 cm, then 4 mm, then 0.8 mm
-#: (39 renders over 60 cm, against 68 every cm, then 2 mm; docs/reproduction.md)
+#: (47 renders over 60 cm, against 69 every cm, then 2 mm; docs/reproduction.md)
 OPENING_STEP = 0.02
 OPENING_LEVELS = 3
 #: a chosen door candidate whose body shows no face to fit its yaw from is turned about
