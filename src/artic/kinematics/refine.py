@@ -221,7 +221,8 @@ INTERVAL_MARGIN_M = 0.03
 #: weight (in points) of the pull of a drawer's q towards the hypothesis: only for the
 #: rank of the least squares (a drawer front with no body front rim in view)
 Q_PRIOR_WEIGHT = 0.01
-#: the step of the line searches (`_search`): across a drawer's front and up (m)
+#: the first step of the line searches over a length (`_search`, m): a drawer's base across
+#: its front and up, a flap's base (`flap_base`), the hinge's side (`hinge_width`)
 SEARCH_STEP = 0.01
 #: the first step of the search along a drawer's opening (m), and its levels: that line
 #: runs the drawer's whole depth (up to 64 cm), so every 2 cm, then 4 mm, then 0.8 mm
