@@ -62,7 +62,12 @@ q off the door against it), its body is turned about the door's hinge, the door 
 where the image shows it (`hinge_turn`, `about_hinge`: yaw + d, q - sign d, up to 20 deg
 each way, q in its range); the turn of the lowest depth residual is refined once more and
 kept when its residual is lower and it is judged inside the mixture's interval (one more
-build).
+build). Then, when the body's inside shows through an opened door at the chosen pose (the
+shell's inner back or side faces), the rounds run once more from it with those faces in
+the yaw's fit (`inner_faces`): they turn with the body, not with the door, so they split
+the door's angle between the yaw and q where the front is all door; kept on the same terms
+(one more build). Only from the chosen candidate: from a start a few degrees off, an inner
+face's pixels are as often another face's, and rounds that fit them settle there.
 
 A microwave's chosen candidate then has its width searched on the depth residual with the
 control panel's side held and the hinge's moved (`hinge_width`, `PANEL_HELD`): each width
@@ -568,6 +573,8 @@ class PosedRenderer:
         self.doors = tuple(_Door.of(self.object, joint) for joint in self.joints)
         self.parts = parts
         self.door_thickness = parts.door_thickness
+        #: the body shell's wall: its inner faces (`_Faces.back`, `inner`) in from its outer
+        self.wall = parts.panel_thickness
 
     def fits(self, h: Hypothesis) -> bool:
         return (h.depth, h.width, h.height) == self.geometry and h.chirality == self.chirality
@@ -668,6 +675,11 @@ class _Faces:
     door_bottom: Array
     #: each door's broad faces (or the drawer's front), in joint order
     doors: tuple[tuple[Array, Array], ...]
+    #: the body's inside seen through an opened door: its back wall's inner face (each
+    #: point's object x) and its side walls' inner faces (object y); parallel to the
+    #: front and the side, they turn with the body's yaw and not with the door
+    back: tuple[Array, Array] = (np.zeros((0, 3)), np.zeros(0))
+    inner: tuple[Array, Array] = (np.zeros((0, 3)), np.zeros(0))
 
 
 def _faces(
@@ -679,8 +691,10 @@ def _faces(
     rays: NDArray[np.float32],
     tolerance: float,
     thickness: float,
+    wall: float = 0.0,
 ) -> _Faces:
-    """Group the observed pixels near the rendered hypothesis by the rendered face."""
+    """Group the observed pixels near the rendered hypothesis by the rendered face (the
+    body's inner faces with its shell's `wall` thickness, none when 0)."""
     rendered, mask = image.depth, image.part_mask
     both = (rendered > 0) & (observed > 0) & (np.abs(observed - rendered) < DEPTH_GATE)
     rows, cols = np.nonzero(both)
@@ -700,6 +714,9 @@ def _faces(
 
     front = is_body & (body[:, 0] < -h.depth / 2 + FACE_EPS)
     side = is_body & ~front & (np.abs(body[:, 1]) > h.width / 2 - FACE_EPS)
+    inside = is_body & ~front & ~side & (wall > 0)
+    back = inside & (np.abs(body[:, 0] - (h.depth / 2 - wall)) < FACE_EPS)
+    inner = inside & (np.abs(np.abs(body[:, 1]) - (h.width / 2 - wall)) < FACE_EPS)
     ends_at_base = front | side
     door_faces = []
     door_level: list[NDArray[np.bool_]] = []
@@ -726,6 +743,8 @@ def _faces(
         door_faces.append((p_observed[on], local[on, 0]))
     front &= near(body, body_seen, 0)
     side &= near(body, body_seen, 1)
+    back &= near(body, body_seen, 0)
+    inner &= near(body, body_seen, 1)
     # a flap's base height is searched on the residual instead (`search_height`)
     bottom = (np.zeros(0) if any(door.flap for door in doors)
               else _bottom_edge(rows, cols, ends_at_base, observed, rendered, rays))  # fmt: skip
@@ -737,6 +756,8 @@ def _faces(
         bottom,
         np.concatenate([np.zeros(0), *door_bottoms]),
         tuple(door_faces),
+        (p_observed[back], body[back, 0]),
+        (p_observed[inner], body[inner, 1]),
     )
 
 
@@ -951,8 +972,15 @@ def _fit(
         if not rim:
             inl_front = np.zeros_like(inl_front)
         return _fit_drawer(h, faces, inl_front, inl_side, inl_doors[0], doors[0].origin)
-    # yaw from the body's vertical faces: front normal n minimises n'C_f n + n_perp'C_s n_perp
-    yaw, inl_front, inl_side = _fit_yaw(h, faces.front, inl_front, faces.side, inl_side)
+    # yaw from the body's vertical faces: front normal n minimises n'C_f n + n_perp'C_s n_perp,
+    # the inner faces (seen through an opened door) with the front's and the side's planes
+    inl_back, inl_inner = _inner_inliers(faces, seed)
+    nf, ns = len(inl_front), len(inl_side)
+    yaw, keep_x, keep_y = _fit_yaw(
+        h, _joined(faces.front, faces.back), np.concatenate([inl_front, inl_back]),
+        _joined(faces.side, faces.inner), np.concatenate([inl_side, inl_inner]),
+    )  # fmt: skip
+    inl_front, inl_side = keep_x[:nf], keep_y[:ns]
     rot = rot_z(yaw)
     rows: list[Array] = []
     rhs: list[Array] = []
@@ -1022,6 +1050,17 @@ def _face_inliers(
     inl_side = _ransac(faces.side[0], seed + 1)
     inl_doors = [_ransac(pts, seed + 2 + j) for j, (pts, _) in enumerate(faces.doors)]
     return inl_front, inl_side, inl_doors
+
+
+def _inner_inliers(faces: _Faces, seed: int) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """RANSAC inliers (`_ransac`) of the body's inner back face and inner side faces."""
+    after = seed + 2 + len(faces.doors)  # the seeds after `_face_inliers`'
+    return _ransac(faces.back[0], after), _ransac(faces.inner[0], after + 1)
+
+
+def _joined(*faces: tuple[Array, Array]) -> tuple[Array, Array]:
+    """Faces' points and offsets (`_Faces`) as one face of parallel planes."""
+    return (np.concatenate([f[0] for f in faces]), np.concatenate([f[1] for f in faces]))
 
 
 def search_opening(
@@ -1321,10 +1360,12 @@ def refine_hypothesis(
     observed: NDArray[np.floating],
     rays: NDArray[np.float32],
     seed: int = 0,
+    inside: bool = False,
 ) -> tuple[Hypothesis, float]:
     """`ITERATIONS` render-assign-fit rounds from `start`; of the start and each round's
-    result, the one with the lowest depth residual, and that residual. For a drawer, the
-    first round leaves the body's front rim out of the fit and is followed by the search
+    result, the one with the lowest depth residual, and that residual. `inside`: the yaw
+    fitted with the body's inner faces too (`_Faces.back`, `inner`; `inner_faces`). For a
+    drawer, the first round leaves the body's front rim out of the fit and is followed by the search
     along its opening (`search_opening`): the rim is a 2 cm strip, and from a start a few
     centimetres off its pixels see into the drawer, not the rim. For a flap (the toaster's
     door) opened `FLAP_OPEN_Q` or more, the base height, which no bottom edge gives it,
@@ -1339,7 +1380,7 @@ def refine_hypothesis(
     for k in range(ITERATIONS):
         tolerance = TOLERANCES[min(k, len(TOLERANCES) - 1)]
         faces = _faces(h, image, door_poses, renderer.doors, observed, rays, tolerance,
-                       renderer.door_thickness)  # fmt: skip
+                       renderer.door_thickness, renderer.wall if inside else 0.0)  # fmt: skip
         h = _fit(h, faces, renderer.doors, seed, rim=k > 0)
         if k == 0 and h.joint_type == "prismatic":
             h = search_opening(h, renderer, observed)
@@ -1500,6 +1541,7 @@ def refine(
     )  # fmt: skip
     best = _refit_sizes(best, observed, camera, category, columns, parts, lower, upper)
     best = hinge_turn(best, observed, camera, category, columns, parts, covered, lower, upper)
+    best = inner_faces(best, observed, camera, category, columns, parts, covered, lower, upper)
     best = hinge_width(best, observed, camera, category, columns, parts)
     # a quarter turn, when no test found a front's features on the chosen front
     turned = [] if named_by else _turned(best, observed, camera, category, columns, parts,
@@ -1860,6 +1902,48 @@ def hinge_turn(
         if turned.yaw == h.yaw:  # no turn
             return best
         fitted, residual = refine_hypothesis(turned, renderer, observed, camera.ray_directions())
+        label = renderer.label(fitted, category, columns)
+    finally:
+        renderer.close()
+    if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
+        return best
+    return _kept(best, fitted, residual, label)
+
+
+def inner_faces(
+    best: Candidate,
+    observed: NDArray[np.float32],
+    camera: CameraIntrinsics,
+    category: str,
+    columns: list[str],
+    parts: PartsConfig,
+    covered: Collection[int],
+    lower: Array,
+    upper: Array,
+) -> Candidate:
+    """The chosen candidate of a category whose doors turn about vertical hinges, when the
+    body's inside shows through an opened door at its pose (RANSAC inliers of the shell's
+    inner back or side faces, `_Faces.back`, `inner`), refined again with those faces in
+    the yaw's fit (`refine_hypothesis`'s `inside`); kept when its residual is lower and it
+    is judged inside the mixture's interval (`judged_ok`). A door's plane fixes the sum of
+    the body's yaw and q; the body's outer faces split it, and where the front is all door
+    and no side shows, they do not: the inner faces, which turn with the body, do. Not in
+    the rounds of every candidate: from a start a few degrees off, an inner face's pixels
+    are as often another face's (a side wall's taken for the back), and the rounds settle
+    on the wrong plane; from the chosen candidate they are mostly its own, and the residual
+    judges (one more build; a flap's angle and its body's yaw turn about other axes)."""
+    h = best.hypothesis
+    if h is None or h.joint_type != "revolute" or category in FLAPS:
+        return best
+    renderer = PosedRenderer(h, category, parts, camera)
+    try:
+        rays = camera.ray_directions()
+        image, door_poses = renderer.render(h)
+        faces = _faces(h, image, door_poses, renderer.doors, observed, rays, TOLERANCES[-1],
+                       renderer.door_thickness, renderer.wall)  # fmt: skip
+        if not any(keep.any() for keep in _inner_inliers(faces, 0)):
+            return best
+        fitted, residual = refine_hypothesis(h, renderer, observed, rays, inside=True)
         label = renderer.label(fitted, category, columns)
     finally:
         renderer.close()
