@@ -61,13 +61,14 @@ door; seen square-on, no side shows, and the rounds keep the yaw they start from
 q off the door against it), its body is turned about the door's hinge, the door held
 where the image shows it (`hinge_turn`, `about_hinge`: yaw + d, q - sign d, up to 20 deg
 each way, q in its range); the turn of the lowest depth residual is refined once more and
-kept when its residual is lower and it is judged inside the mixture's interval (one more
-build). Then, when the body's inside shows through an opened door at the chosen pose (the
-shell's inner back or side faces), the rounds run once more from it with those faces in
-the yaw's fit (`inner_faces`): they turn with the body, not with the door, so they split
-the door's angle between the yaw and q where the front is all door; kept on the same terms
-(one more build). Only from the chosen candidate: from a start a few degrees off, an inner
-face's pixels are as often another face's, and rounds that fit them settle there.
+kept when its residual is lower and it is judged inside the mixture's interval. Then,
+for every category whose doors turn about vertical hinges, when the body's inside shows
+through an opened door at the chosen pose (the shell's inner back or side faces), the
+rounds run once more from it with those faces in the yaw's fit (`inner_faces`): they turn
+with the body, not with the door, so they split the door's angle between the yaw and q
+where the front is all door; kept on the same terms. Only from the chosen candidate: from
+a start a few degrees off, an inner face's pixels are as often another face's, and rounds
+that fit them settle there. The two steps share one build of the chosen object.
 
 A microwave's chosen candidate then has its width searched on the depth residual with the
 control panel's side held and the hinge's moved (`hinge_width`, `PANEL_HELD`): each width
@@ -148,11 +149,12 @@ drawer. Any other category returns the network's estimate with a status saying s
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import math
 import re
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -1540,8 +1542,14 @@ def refine(
         (observed, camera),
     )  # fmt: skip
     best = _refit_sizes(best, observed, camera, category, columns, parts, lower, upper)
-    best = hinge_turn(best, observed, camera, category, columns, parts, covered, lower, upper)
-    best = inner_faces(best, observed, camera, category, columns, parts, covered, lower, upper)
+    if best.hypothesis is not None and _vertical_hinges(category):
+        # the body turned about the hinge, then read off its inner faces: one build of
+        # the chosen object (both keep its geometry)
+        with _posed(best.hypothesis, category, parts, camera, None) as chosen:
+            best = hinge_turn(best, observed, camera, category, columns, parts, covered,
+                              lower, upper, chosen)  # fmt: skip
+            best = inner_faces(best, observed, camera, category, columns, parts, covered,
+                               lower, upper, chosen)  # fmt: skip
     best = hinge_width(best, observed, camera, category, columns, parts)
     # a quarter turn, when no test found a front's features on the chosen front
     turned = [] if named_by else _turned(best, observed, camera, category, columns, parts,
@@ -1858,6 +1866,31 @@ def _yaw_fitted(
     return bool(front.any() or side.any())
 
 
+def _vertical_hinges(category: str) -> bool:
+    """Whether `category`'s doors turn about vertical hinges (not a flap, not a drawer)."""
+    return JOINT_TYPES.get(category) == "revolute" and category not in FLAPS
+
+
+@contextlib.contextmanager
+def _posed(
+    h: Hypothesis,
+    category: str,
+    parts: PartsConfig,
+    camera: CameraIntrinsics,
+    shared: PosedRenderer | None,
+) -> Iterator[PosedRenderer]:
+    """`shared` when it draws `h`'s geometry and hinge side, else one built for `h` (and
+    closed after): the steps after the choice share one build of the chosen object."""
+    if shared is not None and shared.fits(h):
+        yield shared
+        return
+    renderer = PosedRenderer(h, category, parts, camera)
+    try:
+        yield renderer
+    finally:
+        renderer.close()
+
+
 def hinge_turn(
     best: Candidate,
     observed: NDArray[np.float32],
@@ -1868,6 +1901,7 @@ def hinge_turn(
     covered: Collection[int],
     lower: Array,
     upper: Array,
+    shared: PosedRenderer | None = None,
 ) -> Candidate:
     """The chosen candidate of a category whose doors turn about one vertical hinge line
     (`SIDED`), when its body shows no face the rounds fit its yaw from (`_yaw_fitted`),
@@ -1878,13 +1912,12 @@ def hinge_turn(
     faces the yaw; with none in view (a cabinet's front is all door, and seen square-on
     no side shows) the rounds keep the yaw they start from, which only this search moves.
     Where they fit it, the residual's minimum lies off their yaw by up to a few degrees
-    (the sensor's noise, sizes a centimetre off), so the search is not run (one more
-    build: ~10-30 ms)."""
+    (the sensor's noise, sizes a centimetre off), so the search is not run. `shared`: a
+    renderer of the candidate's object (`_posed`; else one more build, ~10-30 ms)."""
     h = best.hypothesis
     if h is None or category not in SIDED:
         return best
-    renderer = PosedRenderer(h, category, parts, camera)
-    try:
+    with _posed(h, category, parts, camera, shared) as renderer:
         doors = renderer.doors  # on one vertical hinge line (`SIDED`), as `about_hinge` needs
         assert all(np.allclose(d.origin[:2], doors[0].origin[:2]) for d in doors)
         if _yaw_fitted(h, renderer, observed, camera):
@@ -1903,8 +1936,6 @@ def hinge_turn(
             return best
         fitted, residual = refine_hypothesis(turned, renderer, observed, camera.ray_directions())
         label = renderer.label(fitted, category, columns)
-    finally:
-        renderer.close()
     if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
         return best
     return _kept(best, fitted, residual, label)
@@ -1920,6 +1951,7 @@ def inner_faces(
     covered: Collection[int],
     lower: Array,
     upper: Array,
+    shared: PosedRenderer | None = None,
 ) -> Candidate:
     """The chosen candidate of a category whose doors turn about vertical hinges, when the
     body's inside shows through an opened door at its pose (RANSAC inliers of the shell's
@@ -1931,12 +1963,12 @@ def inner_faces(
     the rounds of every candidate: from a start a few degrees off, an inner face's pixels
     are as often another face's (a side wall's taken for the back), and the rounds settle
     on the wrong plane; from the chosen candidate they are mostly its own, and the residual
-    judges (one more build; a flap's angle and its body's yaw turn about other axes)."""
+    judges. A flap's angle and its body's yaw turn about other axes. `shared`: as
+    `hinge_turn`'s."""
     h = best.hypothesis
-    if h is None or h.joint_type != "revolute" or category in FLAPS:
+    if h is None or not _vertical_hinges(category):
         return best
-    renderer = PosedRenderer(h, category, parts, camera)
-    try:
+    with _posed(h, category, parts, camera, shared) as renderer:
         rays = camera.ray_directions()
         image, door_poses = renderer.render(h)
         faces = _faces(h, image, door_poses, renderer.doors, observed, rays, TOLERANCES[-1],
@@ -1945,8 +1977,6 @@ def inner_faces(
             return best
         fitted, residual = refine_hypothesis(h, renderer, observed, rays, inside=True)
         label = renderer.label(fitted, category, columns)
-    finally:
-        renderer.close()
     if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
         return best
     return _kept(best, fitted, residual, label)
