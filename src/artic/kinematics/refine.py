@@ -1367,12 +1367,12 @@ def refine_hypothesis(
     """`ITERATIONS` render-assign-fit rounds from `start`; of the start and each round's
     result, the one with the lowest depth residual, and that residual. `inside`: the yaw
     fitted with the body's inner faces too (`_Faces.back`, `inner`; `inner_faces`). For a
-    drawer, the first round leaves the body's front rim out of the fit and is followed by the search
-    along its opening (`search_opening`): the rim is a 2 cm strip, and from a start a few
-    centimetres off its pixels see into the drawer, not the rim. For a flap (the toaster's
-    door) opened `FLAP_OPEN_Q` or more, the base height, which no bottom edge gives it,
-    is searched (`search_height`) before the first round (its points are assigned at that
-    height) and after it; a closed flap's stays the start's."""
+    drawer, the first round leaves the body's front rim out of the fit and is followed by
+    the search along its opening (`search_opening`): the rim is a 2 cm strip, and from a
+    start a few centimetres off its pixels see into the drawer, not the rim. For a flap
+    (the toaster's door) opened `FLAP_OPEN_Q` or more, the base height, which no bottom
+    edge gives it, is searched (`search_height`) before the first round (its points are
+    assigned at that height) and after it; a closed flap's stays the start's."""
     h = start
     image, door_poses = renderer.render(h)
     best = (h, depth_residual(image.depth, observed))
