@@ -1936,9 +1936,7 @@ def hinge_turn(
             return best
         fitted, residual = refine_hypothesis(turned, renderer, observed, camera.ray_directions())
         label = renderer.label(fitted, category, columns)
-    if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
-        return best
-    return _kept(best, fitted, residual, label)
+    return _judged(best, fitted, residual, label, covered, columns, lower, upper)
 
 
 def inner_faces(
@@ -1977,9 +1975,7 @@ def inner_faces(
             return best
         fitted, residual = refine_hypothesis(h, renderer, observed, rays, inside=True)
         label = renderer.label(fitted, category, columns)
-    if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
-        return best
-    return _kept(best, fitted, residual, label)
+    return _judged(best, fitted, residual, label, covered, columns, lower, upper)
 
 
 def hinge_width(
@@ -2169,6 +2165,23 @@ def _refit(
     if not (residual < best.residual and inside):
         return best, False
     return _kept(best, fitted, residual, label), True
+
+
+def _judged(
+    best: Candidate,
+    fitted: Hypothesis,
+    residual: float,
+    label: Array,
+    covered: Collection[int],
+    columns: list[str],
+    lower: Array,
+    upper: Array,
+) -> Candidate:
+    """`best` replaced by a refit of it (`fitted`, its residual and label) when the refit's
+    residual is lower and it is judged inside the mixture's interval (`judged_ok`)."""
+    if not (residual < best.residual and judged_ok(label, fitted, covered, columns, lower, upper)):
+        return best
+    return _kept(best, fitted, residual, label)
 
 
 def _kept(best: Candidate, fitted: Hypothesis, residual: float, label: Array) -> Candidate:
