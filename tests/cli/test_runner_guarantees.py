@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import shutil
+import signal
 from pathlib import Path
 
 import pytest
@@ -170,3 +171,67 @@ def test_a_hand_edited_input_manifest_is_refused(tmp_path, tiny_objects, edit, m
     assert f"{objects / 'manifest.json'}: {message}" in err
     assert len(err.strip().splitlines()) == 1
     assert not out.exists() and not out.with_name("d.partial").exists()
+
+
+class _SignalsInItsFinalizer:
+    """An object whose finalizer receives `signum` (as a file lock's `__del__` may while
+    Ctrl-C is pressed): Python prints the exception raised there and drops it."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+
+    def __del__(self) -> None:
+        signal.raise_signal(self.signum)
+        for _ in range(1000):  # the handler runs at the next instructions, still in here
+            pass
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+@pytest.mark.parametrize(
+    ("signum", "exit_code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["int", "term"]
+)
+def test_a_signal_lost_in_a_finalizer_still_stops_the_run(
+    tmp_path, tiny_objects, monkeypatch, signum, exit_code
+):
+    out = tmp_path / "o"
+    calls: list[int] = []
+    armed = [True]
+    original = workers._run_chunk
+
+    def run(fn, cfg, inputs, chunk, out_dir):
+        calls.append(chunk)
+        if armed[0] and len(calls) == 2:
+            _SignalsInItsFinalizer(signum)  # dropped at once: its __del__ runs here
+        return original(fn, cfg, inputs, chunk, out_dir)
+
+    monkeypatch.setattr(workers, "_run_chunk", run)
+    assert run_cli(*GEN, f"out={out}")[0] == exit_code
+    assert calls == [0, 1], "the chunk that was running finished; no other was started"
+    assert not out.exists() and out.with_name("o.partial").is_dir()
+    calls.clear()
+    armed[0] = False
+    code, _, err = run_cli(*GEN, f"out={out}")
+    assert code == 0, err
+    assert calls == [2]
+    assert tree_bytes(out) == tree_bytes(tiny_objects)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler, "handlers put back"
+
+
+def test_an_ignored_ctrl_c_stays_ignored(tmp_path, monkeypatch):
+    # a background job of a non-interactive shell: SIGINT ignored when the stage starts
+    monkeypatch.setattr(workers, "_run_chunk", _raising_sigint_then(workers._run_chunk))
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        code, _, err = run_cli(*GEN, f"out={tmp_path / 'o'}")
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert code == 0, err
+    assert (tmp_path / "o" / "manifest.json").is_file()
+
+
+def _raising_sigint_then(run_chunk):
+    def run(fn, cfg, inputs, chunk, out_dir):
+        signal.raise_signal(signal.SIGINT)
+        return run_chunk(fn, cfg, inputs, chunk, out_dir)
+
+    return run

@@ -4,7 +4,7 @@
 Workers are spawned processes, one thread each; they die with the runner that started
 them (the kernel's parent-death signal, and a watcher thread), and a worker whose runner
 has died does not commit its chunk. In the runner, SIGTERM is handled like Ctrl-C
-(`terminate_as_interrupt`): the workers are stopped, finished chunks are kept.
+(`Interrupts`): the workers are stopped, finished chunks are kept.
 """
 
 from __future__ import annotations
@@ -41,20 +41,47 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, handled like Ctrl-C."""
 
 
-def terminate_as_interrupt() -> Callable[[], None]:
-    """Turn SIGTERM into `Terminated` in the main thread; returns the undo."""
-    if threading.current_thread() is not threading.main_thread():
-        return lambda: None
+class Interrupts:
+    """Ctrl-C and SIGTERM in the runner's main thread while a stage runs (from `start()`
+    to `stop()`): raised where they land (SIGTERM as `Terminated`) and remembered.
 
-    def handler(signum: int, frame: Any) -> None:
-        raise Terminated
+    Python prints and drops an exception raised in a finalizer (an object's `__del__`, a
+    weakref callback: a file lock's, for one); a Ctrl-C that lands there would be lost
+    and the run would go on to publish. `check()` raises a signal received again; the
+    runner calls it between chunks and before publishing. A SIGINT that is ignored when
+    the stage starts (a background job of a non-interactive shell) stays ignored; in a
+    thread other than the main one nothing is installed (signals reach the main one)."""
 
-    previous = signal.signal(signal.SIGTERM, handler)
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._previous: dict[int, Any] = {}
 
-    def restore() -> None:
-        signal.signal(signal.SIGTERM, previous)
+    def _handler(self, signum: int, frame: Any) -> None:
+        self.received = signum
+        self.check()
 
-    return restore
+    def check(self) -> None:
+        """Raise the signal received since the stage started, if any."""
+        if self.received == signal.SIGTERM:
+            raise Terminated
+        if self.received is not None:
+            raise KeyboardInterrupt
+
+    def start(self) -> Interrupts:
+        """Install the handlers; returns self."""
+        if threading.current_thread() is threading.main_thread():
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                current = signal.getsignal(signum)
+                if signum == signal.SIGINT and current is not signal.default_int_handler:
+                    continue  # ignored, or someone else's handler
+                self._previous[signum] = signal.signal(signum, self._handler)
+        return self
+
+    def stop(self) -> None:
+        """Put back the handlers that were there before `start()`."""
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)
+        self._previous.clear()
 
 
 #: in a worker process: the pid of the runner that started it (None in the runner)
@@ -107,12 +134,15 @@ def run_chunks(
     work: WorkDir,
     workers: int,
     advance: Callable[[int], None],
+    check: Callable[[], None] = lambda: None,
 ) -> None:
     """Do the chunks `todo` (claimed by this process) with `fn`, inline (`workers` <= 1)
     or in `workers` worker processes; each claim is released once its chunk is done,
-    and `advance(items)` is told the items the chunk did."""
+    and `advance(items)` is told the items the chunk did. `check()` is called before a
+    chunk is started (`Interrupts.check`: it raises an interruption received)."""
     if workers <= 1:
         for c in todo:
+            check()
             advance(_run_chunk(fn, cfg, inputs, c, work.out))
             work.release_claim(c)
         return
@@ -126,6 +156,7 @@ def run_chunks(
         while queue or pending:
             # only as many chunks as workers are handed out, so that on Ctrl-C or
             # SIGTERM no queued chunk is left to finish
+            check()
             while queue and len(pending) < workers:
                 c = queue.pop(0)
                 pending[pool.submit(_run_chunk, fn, cfg, inputs, c, work.out)] = c

@@ -14,6 +14,7 @@ from __future__ import annotations
 import logging
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,12 +32,7 @@ from artic.artifacts.output import (
     up_to_date,
 )
 from artic.artifacts.workdir import WorkDir, chunks_of_shard, key_of, shards_of_chunks
-from artic.artifacts.workers import (
-    Terminated,
-    available_cpus,
-    run_chunks,
-    terminate_as_interrupt,
-)
+from artic.artifacts.workers import Interrupts, Terminated, available_cpus, run_chunks
 from artic.cli.registry import stage_entries
 from artic.cli.stage import C, Plan, Stage
 from artic.config.compose import Composed, compose, compose_with_choices, validate
@@ -123,12 +119,13 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
         already = work.prepare(key, force=force, shared=shards > 1)
     handler = log_to(work.path / LOG)
     started, t0 = now_iso(), time.perf_counter()
-    restore = terminate_as_interrupt()
+    interrupts = Interrupts().start()
     try:
         if already:
             log.info("%s: resuming, %d of %d chunks already done", out, already, plan.n_chunks)
         mine = chunks_of_shard(plan.n_chunks, shard, shards)
         while True:
+            interrupts.check()
             with work.locked():
                 if not work.is_mine(key):
                     return _gone(out, config_hash, input_hashes)
@@ -145,6 +142,7 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
                         )
                         return Result("partial", out, None, msg)
                     stats = stage.finalize(cfg, paths, work.path)
+                    interrupts.check()  # one lost in a finalizer (`Interrupts`)
                     stop_log(handler)
                     manifest = publish(
                         work,
@@ -158,7 +156,7 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
                     return Result("complete", out, manifest)
                 claimed = work.claim(todo)
             if claimed:
-                _execute(stage, cfg, paths, plan, claimed, work, key)
+                _execute(stage, cfg, paths, plan, claimed, work, interrupts.check)
             else:
                 time.sleep(_POLL_S)  # another process is doing the rest of our chunks
     except InputError:
@@ -179,7 +177,7 @@ def run_stage(stage: Stage[C], overrides: list[str], force: bool = False) -> Res
         log.error("internal error in %s:\n%s", stage.name, traceback.format_exc())
         raise InternalError(f"{stage.name}: {type(err).__name__}: {err}", work.path / LOG) from err
     finally:
-        restore()
+        interrupts.stop()
         work.leave()
         stop_log(handler)
 
@@ -221,13 +219,14 @@ def _execute(
     plan: Plan,
     todo: list[int],
     work: WorkDir,
-    key: str,
+    check: Callable[[], None],
 ) -> None:
     """Do the chunks `todo` (claimed by this process), inline or in worker processes
-    (`artifacts.workers.run_chunks`); each claim is released once its chunk is done."""
+    (`artifacts.workers.run_chunks`); each claim is released once its chunk is done, and
+    `check()` (`Interrupts.check`) is called before each chunk starts."""
     if not todo:
         return
     workers = min(cfg.runtime.workers or available_cpus(), len(todo))
     total = sum(plan.items[c] for c in todo)
     with progress(stage.name, total, plan.unit) as advance:
-        run_chunks(stage.chunk, cfg, inputs, todo, work, workers, advance)
+        run_chunks(stage.chunk, cfg, inputs, todo, work, workers, advance, check)
