@@ -169,3 +169,26 @@ def test_graphs_without_edges() -> None:
         collate_labels([graph_labels(apart, tree)], [apart]),
     )
     assert np.isfinite(float(terms.total)) and terms.exists == 0.0 and terms.direction == 0.0
+
+
+def test_the_part_frame_reads_a_part_at_its_own_scale_and_compiles():
+    from artic.hierarchy.gnn import PointNetEncoder
+
+    encoder = PointNetEncoder((16, 32), part_frame=True)
+    rng = np.random.default_rng(0)
+    part = torch.tensor(rng.uniform(-1.0, 1.0, (2, 64, 3)), dtype=torch.float32)
+    # the part's own frame does not see where the part is, nor how large: moved and
+    # scaled, only the object-frame half of the input changes
+    moved = 0.05 * part + torch.tensor([0.3, -0.2, 0.1])
+    object_half = PointNetEncoder((16, 32))
+    with torch.no_grad():
+        encoder.mlp[0].weight[:, :3] = 0.0  # the object-frame inputs switched off
+        assert torch.allclose(encoder(part), encoder(moved), atol=1e-5)
+        assert not torch.allclose(object_half(part), object_half(moved), atol=1e-3)
+    model = GraphLabellingNet(SMALL.model_copy(update={"node_frame": "part"})).eval()
+    assert model.encoder.part_frame and model.encoder.mlp[0].in_features == 6
+    program = torch.jit.script(model)
+    graph = collate([synthetic(0)[0]])
+    with torch.no_grad():
+        eager, scripted = model(graph), program(graph)
+    assert all(torch.allclose(a, b, atol=1e-6) for a, b in zip(eager, scripted, strict=True))

@@ -130,7 +130,9 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     log.info("train-hierarchy: %d training and %d validation graphs", len(train), len(val))
 
     torch.manual_seed(cfg.seed)
-    autoencoder = PointAutoencoder(m.encoder_widths, m.decoder_points).to(device)
+    autoencoder = PointAutoencoder(
+        m.encoder_widths, m.decoder_points, m.node_frame == "part"
+    ).to(device)
     ae_optimizer = torch.optim.SGD(
         autoencoder.parameters(), lr=p.lr, momentum=p.momentum, nesterov=True
     )

@@ -228,6 +228,11 @@ class GraphNetConfig(Strict):
     hidden: int = Field(64, gt=0, description="GraphSAGE width")
     head_hidden: int = Field(64, gt=0, description="hidden width of the MLP heads")
     num_layers: int = Field(3, gt=0, description="convolution + edge pooling levels (3)")
+    node_frame: Literal["object", "part"] = Field(
+        "object",
+        description="the node encoder reads each part's points in the object's frame (the "
+        "thesis) or also in the part's own (`gnn.PointNetEncoder`)",
+    )
 
 
 class PretrainConfig(Strict):

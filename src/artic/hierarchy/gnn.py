@@ -43,23 +43,38 @@ def _mlp(widths: Sequence[int], last_activation: bool = False) -> nn.Sequential:
 
 
 class PointNetEncoder(nn.Module):
-    """PointNet (Qi et al., 2017a): points (B, K, 3) -> codes (B, C), C = widths[-1]."""
+    """PointNet (Qi et al., 2017a): points (B, K, 3) -> codes (B, C), C = widths[-1].
 
-    def __init__(self, widths: Sequence[int] = (32, 64, 128)) -> None:
+    With `part_frame` every point is also read in its own set's frame (minus the set's
+    centroid, over the set's radius), as PointNet++ reads a neighbourhood: the points come
+    in the object's frame (`graph.build_part_graph`), where a drawer's 1.5 cm handle is a
+    hundredth of the coordinates' range; in the part's frame it is a tenth."""
+
+    def __init__(self, widths: Sequence[int] = (32, 64, 128), part_frame: bool = False) -> None:
         super().__init__()
         self.code_size = int(widths[-1])
-        self.mlp = _mlp([3, *widths], last_activation=True)
+        self.part_frame = bool(part_frame)
+        self.mlp = _mlp([6 if part_frame else 3, *widths], last_activation=True)
 
     def forward(self, points: Tensor) -> Tensor:
+        if self.part_frame:
+            local = points - points.mean(dim=-2, keepdim=True)
+            radius = local.square().sum(dim=-1, keepdim=True).amax(dim=-2, keepdim=True).sqrt()
+            points = torch.cat([points, local / radius.clamp_min(1e-6)], dim=-1)
         return self.mlp(points).amax(dim=-2)
 
 
 class PointAutoencoder(nn.Module):
     """Encoder + MLP decoder to `num_points` points: (B, K, 3) -> (B, num_points, 3)."""
 
-    def __init__(self, widths: Sequence[int] = (32, 64, 128), num_points: int = 128) -> None:
+    def __init__(
+        self,
+        widths: Sequence[int] = (32, 64, 128),
+        num_points: int = 128,
+        part_frame: bool = False,
+    ) -> None:
         super().__init__()
-        self.encoder = PointNetEncoder(widths)
+        self.encoder = PointNetEncoder(widths, part_frame)
         self.num_points = num_points
         self.decoder = _mlp([self.encoder.code_size, 256, 256, num_points * 3])
 
@@ -212,7 +227,7 @@ class GraphLabellingNet(nn.Module):
         from torch_geometric.nn.pool import EdgePooling
 
         self.cfg = cfg = cfg or GraphNetConfig()
-        self.encoder = encoder or PointNetEncoder(cfg.encoder_widths)
+        self.encoder = encoder or PointNetEncoder(cfg.encoder_widths, cfg.node_frame == "part")
         width = cfg.hidden
         node_in = self.encoder.code_size + len(NODE_FEATURES)
         self.convs = nn.ModuleList(
