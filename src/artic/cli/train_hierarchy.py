@@ -130,9 +130,8 @@ def train_chunk(cfg: TrainHierarchyConfig, inputs: dict[str, Path], chunk: int, 
     log.info("train-hierarchy: %d training and %d validation graphs", len(train), len(val))
 
     torch.manual_seed(cfg.seed)
-    autoencoder = PointAutoencoder(
-        m.encoder_widths, m.decoder_points, m.node_frame == "part"
-    ).to(device)
+    part_frame = m.node_frame == "part"
+    autoencoder = PointAutoencoder(m.encoder_widths, m.decoder_points, part_frame).to(device)
     ae_optimizer = torch.optim.SGD(
         autoencoder.parameters(), lr=p.lr, momentum=p.momentum, nesterov=True
     )
