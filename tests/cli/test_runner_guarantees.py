@@ -8,6 +8,7 @@ import dataclasses
 import json
 import shutil
 import signal
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -95,13 +96,24 @@ def test_a_shard_names_the_shards_still_missing(tmp_path):
     assert "shard.index 2 still to run" in " ".join(text.split())
 
 
-def _interrupt_on_second_chunk(monkeypatch, calls: list[int], armed: list[bool]) -> None:
+def _raise_ctrl_c() -> None:
+    raise KeyboardInterrupt
+
+
+def _interrupt_on_second_chunk(
+    monkeypatch,
+    calls: list[int],
+    armed: list[bool],
+    interrupt: Callable[[], object] = _raise_ctrl_c,
+) -> None:
+    """Record the chunks started in `calls`; while `armed[0]`, call `interrupt()` as the
+    second starts (the chunk runs on if it does not raise)."""
     original = workers._run_chunk
 
     def run(fn, cfg, inputs, chunk, out_dir):
         calls.append(chunk)
         if armed[0] and len(calls) == 2:
-            raise KeyboardInterrupt
+            interrupt()
         return original(fn, cfg, inputs, chunk, out_dir)
 
     monkeypatch.setattr(workers, "_run_chunk", run)
@@ -196,15 +208,8 @@ def test_a_signal_lost_in_a_finalizer_still_stops_the_run(
     out = tmp_path / "o"
     calls: list[int] = []
     armed = [True]
-    original = workers._run_chunk
-
-    def run(fn, cfg, inputs, chunk, out_dir):
-        calls.append(chunk)
-        if armed[0] and len(calls) == 2:
-            _SignalsInItsFinalizer(signum)  # dropped at once: its __del__ runs here
-        return original(fn, cfg, inputs, chunk, out_dir)
-
-    monkeypatch.setattr(workers, "_run_chunk", run)
+    # the object is dropped at once: its __del__ runs as the second chunk starts
+    _interrupt_on_second_chunk(monkeypatch, calls, armed, lambda: _SignalsInItsFinalizer(signum))
     assert run_cli(*GEN, f"out={out}")[0] == exit_code
     assert calls == [0, 1], "the chunk that was running finished; no other was started"
     assert not out.exists() and out.with_name("o.partial").is_dir()
