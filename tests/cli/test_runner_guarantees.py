@@ -9,6 +9,7 @@ import json
 import shutil
 import signal
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import pytest
@@ -224,7 +225,7 @@ def test_a_signal_lost_in_a_finalizer_still_stops_the_run(
 
 def test_an_ignored_ctrl_c_stays_ignored(tmp_path, monkeypatch):
     # a background job of a non-interactive shell: SIGINT ignored when the stage starts
-    monkeypatch.setattr(workers, "_run_chunk", _raising_sigint_then(workers._run_chunk))
+    _interrupt_on_second_chunk(monkeypatch, [], [True], partial(signal.raise_signal, signal.SIGINT))
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         code, _, err = run_cli(*GEN, f"out={tmp_path / 'o'}")
@@ -232,11 +233,3 @@ def test_an_ignored_ctrl_c_stays_ignored(tmp_path, monkeypatch):
         signal.signal(signal.SIGINT, previous)
     assert code == 0, err
     assert (tmp_path / "o" / "manifest.json").is_file()
-
-
-def _raising_sigint_then(run_chunk):
-    def run(fn, cfg, inputs, chunk, out_dir):
-        signal.raise_signal(signal.SIGINT)
-        return run_chunk(fn, cfg, inputs, chunk, out_dir)
-
-    return run

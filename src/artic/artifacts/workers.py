@@ -134,7 +134,7 @@ def run_chunks(
     work: WorkDir,
     workers: int,
     advance: Callable[[int], None],
-    check: Callable[[], None] = lambda: None,
+    check: Callable[[], None],
 ) -> None:
     """Do the chunks `todo` (claimed by this process) with `fn`, inline (`workers` <= 1)
     or in `workers` worker processes; each claim is released once its chunk is done,
