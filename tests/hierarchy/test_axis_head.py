@@ -26,7 +26,14 @@ from artic.hierarchy.segmentation import (
     segment,
     train_step,
 )
-from artic.hierarchy.votes import Clusters, VoteOutput, axis_targets, split_by_axis, vote_loss
+from artic.hierarchy.votes import (
+    Clusters,
+    VoteOutput,
+    axis_targets,
+    smooth_within_parts,
+    split_by_axis,
+    vote_loss,
+)
 from artic.objects.tree import JointAxis, KinematicTree
 
 
@@ -69,6 +76,55 @@ def test_a_part_whose_points_read_two_axes_is_cut_in_two():
         cut = split_by_axis(Clusters(label, np.ones(3, dtype=np.float32)),
                             vertical.astype(np.float32), static, 5, share)  # fmt: skip
         assert cut.label.max() + 1 == parts
+
+
+def _caster_and_wheel() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One moving part of 30 points: a caster (8 points above, z 1.0-1.07, reading
+    vertical) on a wheel (22 below, z 0-0.21), with two of the wheel's points misread
+    vertical and one of the caster's horizontal; and a seat (part 1) far away, 12 points
+    reading horizontal but for three scattered misread ones."""
+    rng = np.random.default_rng(0)
+    caster = np.c_[rng.uniform(0, 0.05, (8, 2)), np.linspace(1.0, 1.07, 8)]
+    wheel = np.c_[rng.uniform(0, 0.05, (22, 2)), np.linspace(0.0, 0.21, 22)]
+    seat = np.c_[rng.uniform(5, 6, (12, 2)), np.zeros(12)]
+    xyz = np.concatenate([caster, wheel, seat])
+    label = np.array([0] * 30 + [1] * 12)
+    vertical = np.array([0.9] * 7 + [0.3] + [0.1] * 22 + [0.1] * 12, dtype=np.float32)
+    vertical[[12, 25]] = 0.8  # the wheel's misread points
+    vertical[[31, 35, 40]] = 0.9  # the seat's
+    return xyz, label, vertical
+
+
+def test_smoothing_within_parts_outvotes_stray_readings_and_keeps_a_block():
+    """Each point's reading becomes its part's k nearest points' mean: the wheel's and the
+    seat's stray vertical readings fall under one half, the caster's misread point rises
+    above it, and no reading crosses a part (the seat's points never read the caster's)."""
+    xyz, label, vertical = _caster_and_wheel()
+    smooth = smooth_within_parts(vertical, xyz, label, 4)
+    assert (smooth[:8] > 0.5).all() and (smooth[8:] < 0.5).all()
+    # a part of fewer points than k: every point takes the part's mean
+    one = smooth_within_parts(vertical[:3], xyz[:3], np.zeros(3, dtype=np.int64), 5)
+    np.testing.assert_allclose(one, vertical[:3].mean(), rtol=1e-6)
+    # k = 1: each point its own neighbour, nothing changes
+    np.testing.assert_allclose(smooth_within_parts(vertical, xyz, label, 1), vertical)
+
+
+def test_the_cut_after_smoothing_separates_the_caster_exactly():
+    """Unsmoothed, the cut takes the wheel's two misread points with the caster and
+    leaves the caster's misread point on the wheel, and cuts the seat's three strays off
+    when no share is asked; smoothed (k 4), the caster's 8 points are one part, the wheel's
+    22 another, the seat whole."""
+    xyz, label, vertical = _caster_and_wheel()
+    static = np.zeros(len(label), dtype=bool)
+    clusters = Clusters(label, np.ones(2, dtype=np.float32))
+    raw = split_by_axis(clusters, vertical, static, 2)
+    assert raw.label.max() + 1 == 4
+    assert not (raw.label[:8] == raw.label[0]).all()
+    cut = split_by_axis(clusters, vertical, static, 2, 0.0, xyz, 4)
+    assert cut.label.max() + 1 == 3
+    for members in (np.arange(8), np.arange(8, 30), np.arange(30, 42)):
+        assert len(np.unique(cut.label[members])) == 1
+    assert len(np.unique(cut.label[[0, 8, 30]])) == 3
 
 
 def test_the_axis_loss_joins_the_total_only_where_it_has_targets():

@@ -129,8 +129,22 @@ class InferenceConfig(Strict):
     axis_split: bool = Field(
         False,
         description="votes head with an axis head: a part whose points read a vertical and a "
-        "horizontal axis (each side at least min_points per sample, the smaller a quarter of the "
-        "part: votes.AXIS_SPLIT_SHARE) is cut in two",
+        "horizontal axis (each side at least min_points per sample, the smaller at least "
+        "axis_share of the part) is cut in two",
+    )
+    axis_share: float = Field(
+        0.25,
+        ge=0,
+        lt=0.5,
+        description="votes head, axis_split: the smaller half of a cut part holds at least this "
+        "share of its points (a few misread points of a seat are no second part)",
+    )
+    axis_smooth: int = Field(
+        0,
+        ge=0,
+        description="votes head, axis_split: before the cut, each point's vertical-axis "
+        "probability is the mean over its part's this many nearest points (itself included) "
+        "in the coordinates the network saw, since a rigid part's points read one axis; 0: none",
     )
     passes: int = Field(
         1,

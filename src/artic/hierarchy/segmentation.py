@@ -461,6 +461,8 @@ def parts_of_passes(
             bandwidth,
             config.moving_together,
             len(samples) * config.min_points if config.axis_split else None,
+            config.axis_share,
+            config.axis_smooth,
         )
         label, confidence = clusters.label, clusters.confidence
     else:

@@ -214,12 +214,6 @@ class VoteLosses(NamedTuple):
 
 #: a joint axis whose direction's |z| exceeds this is vertical (`axis_targets`)
 VERTICAL = 0.5
-#: the smaller half of a part `split_by_axis` cuts holds at least this share of its points
-#: (a seat's few misread points are no second part): chosen on the office chair's
-#: validation scans, the share of the highest mAP@0.5 among those whose predicted-parts Tree
-#: F1 is not below that of no cut (0.15: F1 -2.3, 0.2: -1.2, 0.25: +0.2, 0.3: +0.5 points;
-#: mAP +0.061, +0.052, +0.040, +0.016; docs/reproduction.md, issue 18's twelfth round)
-AXIS_SPLIT_SHARE = 0.25
 
 
 def axis_targets(part_id: NDArray[np.integer], tree: KinematicTree) -> NDArray[np.int64]:
@@ -434,17 +428,24 @@ def vote_parts(
     bandwidth: float = 0.0,
     moving_together: bool = False,
     axis_split: int | None = None,
+    axis_share: float = 0.25,
+    axis_smooth: int = 0,
 ) -> tuple[Clusters, NDArray[np.float32]]:
     """`cluster_votes` on the first cloud of a batch -> (clusters, motion_prob (S, T));
     with `axis_split` (the halves' minimum size; None: no cut) and the output's
-    `axis_logits`, then `split_by_axis`."""
+    `axis_logits`, then `split_by_axis` (`axis_share`, `axis_smooth`: its `min_share` and
+    `smooth`)."""
     prob = output.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
     shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
     clusters = cluster_votes(shifted, prob, radius, min_size, one_part, bandwidth, moving_together)
     if axis_split is not None and output.axis_logits is not None:
         vertical = torch.sigmoid(output.axis_logits[0]).cpu().numpy().astype(np.float32)
         static = prob.argmax(-1) == STATIC
-        clusters = split_by_axis(clusters, vertical, static, axis_split, AXIS_SPLIT_SHARE)
+        xyz = output.xyz[0].cpu().numpy()
+        clusters = split_by_axis(
+            clusters, vertical, static, axis_split, axis_share, xyz if axis_smooth else None,
+            axis_smooth,
+        )  # fmt: skip
     return clusters, prob
 
 
@@ -454,19 +455,26 @@ def split_by_axis(
     static: NDArray[np.bool_],
     min_size: int,
     min_share: float = 0.0,
+    xyz: NDArray[np.floating] | None = None,
+    smooth: int = 0,
 ) -> Clusters:
     """Each part of moving points cut in two where its points read two axes (structure: a
     rigid part moves about one axis): its points whose `vertical` probability (S,) is above
     one half against the rest, when both have `min_size` points and `min_share` of the
     part's (a few misread points of a seat are no second part) (`segment`: the minimum
     per sample, `inference.min_points`, times the samples; a half is a part of a kept
-    cluster, so the cluster's floor of a fraction of the sample does not apply to it:
-    chosen on the office chair's validation scans, docs/hierarchy.md). A swivelling caster and
+    cluster, so the cluster's floor of a fraction of the sample does not apply to it;
+    `min_share` is `inference.axis_share`, chosen on the office chair's validation scans,
+    docs/hierarchy.md). With `smooth` k > 0 and the points' coordinates `xyz` (S, 3), each
+    point's probability is first the mean over the k nearest points of its part (itself
+    included; `smooth_within_parts`). A swivelling caster and
     the wheel it carries vote for centres 2-3 cm apart, which the clustering joins; the
     caster turns about a vertical axis, the wheel about a horizontal one. Parts of `static`
     points (S,) stay whole. Each half's confidence is the part's times its points' mean
     probability of their axis. Parts renumbered by decreasing size, as `cluster_votes`."""
     groups: list[tuple[NDArray[np.int64], float]] = []
+    if smooth > 0 and xyz is not None:
+        vertical = smooth_within_parts(vertical, xyz, clusters.label, smooth)
     up = vertical > 0.5
     for part, confidence in enumerate(clusters.confidence.tolist()):
         members = np.flatnonzero(clusters.label == part)
@@ -482,3 +490,24 @@ def split_by_axis(
     for i, (members, _) in enumerate(groups):
         label[members] = i
     return Clusters(label, np.array([c for _, c in groups], dtype=np.float32))
+
+
+def smooth_within_parts(
+    values: NDArray[np.floating],
+    xyz: NDArray[np.floating],
+    label: NDArray[np.integer],
+    k: int,
+) -> NDArray[np.float32]:
+    """`values` (S,) with each point's the mean over the `k` nearest points (S, 3 `xyz`,
+    itself included) that share its `label` (S,): all of them in a part of at most k
+    points. A rigid part's points read one axis, so a few misread ones among their
+    neighbours are outvoted while a caster's own points, a block of them, keep theirs."""
+    v = np.asarray(values, dtype=np.float64)
+    out = np.empty(len(v), dtype=np.float32)
+    for part in np.unique(label):
+        members = np.flatnonzero(label == part)
+        n = min(k, len(members))
+        _, near = cKDTree(xyz[members]).query(xyz[members], k=n)
+        near = np.asarray(near).reshape(len(members), n)
+        out[members] = v[members][near].mean(1)
+    return out
