@@ -171,8 +171,8 @@ def test_votes_head_trains_chooses_its_radius_and_segments(tiny: TinyScans, tmp_
 
 def test_votes_head_trains_with_an_axis_head(tiny: TinyScans, tmp_path: Path) -> None:
     """`model.axis_head=true`: the axis head trains with the rest (its loss in the total:
-    `votes.vote_loss`), the model file keeps it and `inference.axis_split`, and `segment`
-    reads it."""
+    `votes.vote_loss`), the model file keeps it and `inference.axis_split`, the model card
+    names it, and `segment` reads it."""
     out = tmp_path / "axis"
     code, _, err = run_cli(
         *ARGS, "model.head=votes", "model.axis_head=true", "inference.axis_split=true",
@@ -181,6 +181,7 @@ def test_votes_head_trains_with_an_axis_head(tiny: TinyScans, tmp_path: Path) ->
     assert code == 0, err
     loaded = load_segmenter(out / "model.pt", "storage_furniture")
     assert loaded.model.config.axis_head and loaded.inference.axis_split
+    assert "an axis head" in (out / "model_card.md").read_text()
     ds = ScanDataset.open(tiny.scans)
     cloud = ds.cloud(ds.select("test", ("noisy",))[0])
     result = segment(loaded.model, cloud.points, loaded.inference)

@@ -777,6 +777,12 @@ def head_description(model: SegmenterModelConfig, info: dict[str, Any]) -> str:
         + (", every static point one part" if network.get("static_part") == "one" else "")
         + (", offsets learnt part by part" if network.get("offset_weight") == "parts" else "")
         + (
+            ", an axis head (does the point's part move about a vertical axis?), parts cut "
+            "where it reads two"
+            if network.get("axis_head") and info["inference"].get("axis_split")
+            else ""
+        )
+        + (
             ", the moving types' votes clustered together"
             if info["inference"].get("moving_together")
             else ""
