@@ -22,7 +22,6 @@ import itertools
 import json
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
@@ -31,9 +30,8 @@ from artic.artifacts.scan_dataset import ScanDataset
 from artic.errors import InputError
 from artic.evaluation.hierarchy_report import table_rows
 from artic.hierarchy.config import HierarchyEvaluateConfig
-from artic.hierarchy.evaluate import evaluate_scan
-from artic.hierarchy.infer import MAX_POINTS
-from artic.hierarchy.models import hierarchy_config, load_labeller, load_segmenter
+from artic.hierarchy.evaluate import evaluate_rows, evaluation_config
+from artic.hierarchy.models import load_labeller, load_segmenter
 
 KINDS = ("clean", "noisy")
 
@@ -61,27 +59,15 @@ def main() -> None:
     except InputError as err:
         raise SystemExit(f"error: {err}") from None
     rows = [r for r in ds.select("train", KINDS, list(objects)) if r.pose < args.max_poses]
-    base = replace(
-        hierarchy_config(seg, lab, MAX_POINTS), estimate_axes=False, yaw="none"
-    )  # the command's settings, as `evaluate hierarchy` runs them
     opts = HierarchyEvaluateConfig()
+    base = evaluation_config(seg, lab, opts)  # as `artic evaluate hierarchy` runs the models
     saved = (seg.inference.axis_smooth, seg.inference.axis_share)
     pairs = [saved, *(p for p in itertools.product(args.smooth, args.share) if p != saved)]
     figures: dict[str, dict[str, float]] = {}
     for smooth, share in pairs:
         update = {"axis_smooth": smooth, "axis_share": share}
         cfg = replace(base, segmentation=base.segmentation.model_copy(update=update))
-        records: list[dict[str, Any]] = []
-        for row in rows:
-            cloud, tree = ds.cloud(row), ds.tree(row.object_id)
-            assert cloud.part_id is not None and cloud.motion_type is not None
-            kind = KINDS.index(row.kind)
-            rng = np.random.default_rng([0, row.object_id, row.pose, kind])
-            record = evaluate_scan(cloud.points, cloud.part_id, cloud.motion_type, tree,
-                                   seg.model, lab.model, cfg, opts, rng)  # fmt: skip
-            if record is not None:
-                records.append({"object_id": row.object_id, "pose": row.pose,
-                                "kind": row.kind, **record})  # fmt: skip
+        records, _ = evaluate_rows(ds, rows, seg.model, lab.model, cfg, opts, 0)
         pred = [r for r in table_rows(records, KINDS) if r["segmentation"] == "pred"]
         scores = {f"{r['kind']}_map": float(r["map"]) for r in pred}
         scores |= {f"{r['kind']}_tree_f1": float(r["tree_f1"]) for r in pred}

@@ -120,7 +120,7 @@ def test_the_cut_after_smoothing_separates_the_caster_exactly():
     raw = split_by_axis(clusters, vertical, static, 2)
     assert raw.label.max() + 1 == 4
     assert not (raw.label[:8] == raw.label[0]).all()
-    cut = split_by_axis(clusters, vertical, static, 2, 0.0, xyz, 4)
+    cut = split_by_axis(clusters, smooth_within_parts(vertical, xyz, label, 4), static, 2, 0.0)
     assert cut.label.max() + 1 == 3
     for members in (np.arange(8), np.arange(8, 30), np.arange(30, 42)):
         assert len(np.unique(cut.label[members])) == 1

@@ -23,11 +23,9 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from pydantic import Field
 
 from artic.artifacts.chunk_parts import take_json
@@ -80,9 +78,8 @@ def evaluate_chunk(
     """Evaluate the scans of chunk `chunk`'s test objects into tmp/chunks/<chunk>.json."""
     import torch
 
-    from artic.hierarchy.evaluate import evaluate_scan
-    from artic.hierarchy.infer import MAX_POINTS
-    from artic.hierarchy.models import hierarchy_config, load_labeller, load_segmenter
+    from artic.hierarchy.evaluate import evaluate_rows, evaluation_config
+    from artic.hierarchy.models import load_labeller, load_segmenter
 
     torch.set_num_threads(cfg.runtime.threads or available_cpus())
     ds = _dataset(str(inputs["scans"]), cfg.category.name)
@@ -90,37 +87,16 @@ def evaluate_chunk(
     objects = _test_objects(cfg, inputs["scans"])[chunk * size : (chunk + 1) * size]
     segmenter = load_segmenter(inputs["segmenter"] / MODEL, cfg.category.name)
     labeller = load_labeller(inputs["labeller"] / MODEL, cfg.category.name)
-    # the yaw is handled per scan by evaluate_scan (evaluate.yaw); the models see the
-    # object frame
-    hcfg = replace(
-        hierarchy_config(segmenter, labeller, MAX_POINTS),
-        estimate_axes=False,
-        yaw="none",
-        motion_evidence=cfg.evaluate.motion_evidence,
+    max_poses = cfg.evaluate.max_poses
+    rows = [
+        row
+        for row in ds.select("test", cfg.evaluate.kinds, objects)
+        if max_poses is None or row.pose < max_poses
+    ]
+    hcfg = evaluation_config(segmenter, labeller, cfg.evaluate)
+    records, skipped = evaluate_rows(
+        ds, rows, segmenter.model, labeller.model, hcfg, cfg.evaluate, cfg.seed
     )
-    records, skipped = [], 0
-    for row in ds.select("test", cfg.evaluate.kinds, objects):
-        if cfg.evaluate.max_poses is not None and row.pose >= cfg.evaluate.max_poses:
-            continue
-        cloud, tree = ds.cloud(row), ds.tree(row.object_id)
-        assert cloud.part_id is not None and cloud.motion_type is not None
-        kind = ("clean", "noisy").index(row.kind)
-        rng = np.random.default_rng([cfg.seed, row.object_id, row.pose, kind])
-        record = evaluate_scan(
-            cloud.points,
-            cloud.part_id,
-            cloud.motion_type,
-            tree,
-            segmenter.model,
-            labeller.model,
-            hcfg,
-            cfg.evaluate,
-            rng,
-        )
-        if record is None:
-            skipped += 1
-            continue
-        records.append({"object_id": row.object_id, "pose": row.pose, "kind": row.kind, **record})
     (tmp / CHUNKS).mkdir()
     write_json(tmp / CHUNKS / f"{chunk:04d}.json", {"records": records, "skipped": skipped})
     return len(objects)

@@ -8,7 +8,9 @@ them, as in training: `fit_labeller.restrict_tree`).
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Iterable
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -22,6 +24,10 @@ from artic.hierarchy.gnn import Labeller
 from artic.hierarchy.infer import HierarchyConfig, build_hierarchy, segment_scan
 from artic.hierarchy.segmentation import PartSegmentationNet
 from artic.objects.tree import KinematicTree
+
+if TYPE_CHECKING:
+    from artic.artifacts.scan_dataset import ScanDataset, ScanRow
+    from artic.hierarchy.models import LoadedLabeller, LoadedSegmenter
 
 
 def _turned_and_recovered(
@@ -85,3 +91,43 @@ def evaluate_scan(
             "tree_f1": c.tree.f1,
         }
     return record
+
+
+def evaluation_config(
+    segmenter: LoadedSegmenter, labeller: LoadedLabeller, opts: HierarchyEvaluateConfig
+) -> HierarchyConfig:
+    """The settings `artic evaluate hierarchy` runs the models with: theirs
+    (`models.hierarchy_config`), no axis estimate, the object frame (`evaluate_scan` turns
+    the scan itself with opts.yaw) and opts' motion evidence."""
+    from artic.hierarchy.infer import MAX_POINTS
+    from artic.hierarchy.models import hierarchy_config
+
+    cfg = hierarchy_config(segmenter, labeller, MAX_POINTS)
+    return replace(cfg, estimate_axes=False, yaw="none", motion_evidence=opts.motion_evidence)
+
+
+def evaluate_rows(
+    ds: ScanDataset,
+    rows: Iterable[ScanRow],
+    segmenter: PartSegmentationNet,
+    labeller: Labeller,
+    cfg: HierarchyConfig,
+    opts: HierarchyEvaluateConfig,
+    seed: int,
+) -> tuple[list[dict[str, Any]], int]:
+    """`evaluate_scan` on each scan of `rows` of `ds`, each seeded from (seed, object, pose,
+    kind) -> (records, each with its object, pose and kind; scans skipped: root not
+    visible)."""
+    records, skipped = [], 0
+    for row in rows:
+        cloud, tree = ds.cloud(row), ds.tree(row.object_id)
+        assert cloud.part_id is not None and cloud.motion_type is not None
+        kind = ("clean", "noisy").index(row.kind)
+        rng = np.random.default_rng([seed, row.object_id, row.pose, kind])
+        record = evaluate_scan(cloud.points, cloud.part_id, cloud.motion_type, tree,
+                               segmenter, labeller, cfg, opts, rng)  # fmt: skip
+        if record is None:
+            skipped += 1
+            continue
+        records.append({"object_id": row.object_id, "pose": row.pose, "kind": row.kind, **record})
+    return records, skipped

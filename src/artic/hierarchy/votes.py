@@ -433,19 +433,19 @@ def vote_parts(
 ) -> tuple[Clusters, NDArray[np.float32]]:
     """`cluster_votes` on the first cloud of a batch -> (clusters, motion_prob (S, T));
     with `axis_split` (the halves' minimum size; None: no cut) and the output's
-    `axis_logits`, then `split_by_axis` (`axis_share`, `axis_smooth`: its `min_share` and
-    `smooth`)."""
+    `axis_logits`, then `split_by_axis` (`axis_share`: its `min_share`), each point's
+    reading first smoothed over its part's `axis_smooth` nearest (`smooth_within_parts`;
+    0: not)."""
     prob = output.motion_logits[0].softmax(-1).cpu().numpy().astype(np.float32)
     shifted = (output.xyz[0] + output.offsets[0]).cpu().numpy()
     clusters = cluster_votes(shifted, prob, radius, min_size, one_part, bandwidth, moving_together)
     if axis_split is not None and output.axis_logits is not None:
         vertical = torch.sigmoid(output.axis_logits[0]).cpu().numpy().astype(np.float32)
         static = prob.argmax(-1) == STATIC
-        xyz = output.xyz[0].cpu().numpy()
-        clusters = split_by_axis(
-            clusters, vertical, static, axis_split, axis_share, xyz if axis_smooth else None,
-            axis_smooth,
-        )  # fmt: skip
+        if axis_smooth:
+            xyz = output.xyz[0].cpu().numpy()
+            vertical = smooth_within_parts(vertical, xyz, clusters.label, axis_smooth)
+        clusters = split_by_axis(clusters, vertical, static, axis_split, axis_share)
     return clusters, prob
 
 
@@ -455,8 +455,6 @@ def split_by_axis(
     static: NDArray[np.bool_],
     min_size: int,
     min_share: float = 0.0,
-    xyz: NDArray[np.floating] | None = None,
-    smooth: int = 0,
 ) -> Clusters:
     """Each part of moving points cut in two where its points read two axes (structure: a
     rigid part moves about one axis): its points whose `vertical` probability (S,) is above
@@ -465,16 +463,12 @@ def split_by_axis(
     per sample, `inference.min_points`, times the samples; a half is a part of a kept
     cluster, so the cluster's floor of a fraction of the sample does not apply to it;
     `min_share` is `inference.axis_share`, chosen on the office chair's validation scans,
-    docs/hierarchy.md). With `smooth` k > 0 and the points' coordinates `xyz` (S, 3), each
-    point's probability is first the mean over the k nearest points of its part (itself
-    included; `smooth_within_parts`). A swivelling caster and
+    docs/hierarchy.md). A swivelling caster and
     the wheel it carries vote for centres 2-3 cm apart, which the clustering joins; the
     caster turns about a vertical axis, the wheel about a horizontal one. Parts of `static`
     points (S,) stay whole. Each half's confidence is the part's times its points' mean
     probability of their axis. Parts renumbered by decreasing size, as `cluster_votes`."""
     groups: list[tuple[NDArray[np.int64], float]] = []
-    if smooth > 0 and xyz is not None:
-        vertical = smooth_within_parts(vertical, xyz, clusters.label, smooth)
     up = vertical > 0.5
     for part, confidence in enumerate(clusters.confidence.tolist()):
         members = np.flatnonzero(clusters.label == part)
