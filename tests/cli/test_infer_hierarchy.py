@@ -274,6 +274,12 @@ def test_bad_options_and_models_exit_2(scan, models, tmp_path):
     assert code == 2 and "not lamp" in err, err
     code, _, err = run_cli("segment", str(scan), "--category", "lamp", "--out", str(tmp_path / "o"))
     assert code == 2 and "artic pipeline ch4" in err and "--model PATH" in err, err
+    # two models of two categories, no --category: refused, whichever is given
+    lamp_lab = tmp_path / "lamp_lab.pt"
+    save_labeller(lamp_lab, "lamp", tiny_labeller(), PartGraphConfig(), {})
+    code, _, err = infer(scan, (models[0], lamp_lab), tmp_path / "o")
+    assert code == 2 and "a model of category lamp, not storage_furniture" in err, err
+    assert not (tmp_path / "o").exists()
     stranger = tmp_path / "mine"
     stranger.mkdir()
     (stranger / "notes.txt").write_text("keep me")

@@ -234,7 +234,7 @@ _MAX_POINTS = typer.Option(
 )
 _SEED = typer.Option(0, "--seed", help="seed of the subsampling and graph resampling")
 _CATEGORY4 = typer.Option(
-    None, "--category", help="model category (default models: storage_furniture)"
+    None, "--category", help="model category (default: the given model's, else storage_furniture)"
 )
 
 

@@ -79,7 +79,7 @@ log = logging.getLogger("artic")
 class Options:
     """The settings shared by the three commands (recorded in the manifest)."""
 
-    category: str | None = None  # None: storage_furniture for default model paths, unchecked
+    category: str | None = None  # None: infer-hierarchy's given model's, else storage_furniture
     scale: str = "1"  # "auto" or a positive factor applied to the coordinates
     max_points: int = MAX_POINTS
     seed: int = 0
@@ -297,8 +297,14 @@ def run_infer_hierarchy(
     scan = read_scan(scan_path, opts.scale, opts.max_points, opts.seed)
     out = out or default_out(scan_path, "infer-hierarchy")
     check_output_folder(out, "infer-hierarchy")  # every input before the models are loaded
-    segmenter, seg_choice = find_segmenter(segmenter_model, opts.category)
-    labeller, lab_choice = find_labeller(labeller_model, opts.category)
+    # without --category the first model given names it, and the other is found (or
+    # checked) for it: two models of two categories are no pipeline
+    if segmenter_model is not None or labeller_model is None:
+        segmenter, seg_choice = find_segmenter(segmenter_model, opts.category)
+        labeller, lab_choice = find_labeller(labeller_model, segmenter.category)
+    else:
+        labeller, lab_choice = find_labeller(labeller_model, opts.category)
+        segmenter, seg_choice = find_segmenter(segmenter_model, labeller.category)
     seg_path, lab_path = seg_choice.path, lab_choice.path
     require_points(scan, required_points(segmenter.model))
     cfg = replace(hierarchy_config(segmenter, labeller, opts.max_points), yaw=opts.yaw)
