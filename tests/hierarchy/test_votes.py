@@ -337,6 +337,37 @@ def test_mode_seeking_is_each_points_own_mean_shift_climb() -> None:
     assert min(steps) < MODE_ITERATIONS == max(steps)  # some stopped early, some did not
 
 
+def test_mode_seeking_runs_on_one_blas_thread_and_restores_the_callers(monkeypatch) -> None:
+    """`seek_modes`'s matrix products run on one BLAS thread whatever the process allows
+    (a second one only waits on a shared 2-core machine), the caller's setting comes back
+    afterwards, and the bytes are those of a process with one thread."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import artic.hierarchy.votes as votes_module
+
+    def blas_threads() -> set[int]:
+        return {p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+
+    rng = np.random.default_rng(0)
+    centres = rng.uniform(-1.0, 1.0, (12, 3))
+    points = centres[rng.integers(0, 12, 400)] + rng.normal(0.0, 0.03, (400, 3))
+    with threadpool_limits(limits=1, user_api="blas"):
+        alone = seek_modes(points, 0.08)
+    seen: list[set[int]] = []
+    inner = votes_module._seek_modes
+
+    def recorded(*args: object) -> np.ndarray:
+        seen.append(blas_threads())
+        return inner(*args)
+
+    monkeypatch.setattr(votes_module, "_seek_modes", recorded)
+    with threadpool_limits(limits=2, user_api="blas"):
+        moved = seek_modes(points, 0.08)
+        assert blas_threads() == {2}
+    assert seen == [{1}]
+    assert moved.tobytes() == alone.tobytes()
+
+
 @pytest.mark.parametrize("radius", [0.005, 0.02, 0.05, 0.2])
 def test_radius_components_are_the_radius_graphs_components_label_for_label(
     radius: float,

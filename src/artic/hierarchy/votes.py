@@ -51,8 +51,9 @@ IoU of about 0.5.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Collection, Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -90,8 +91,25 @@ def seek_modes(
 
     The kernel is formed `MODE_ROWS` rows at a time in one reused buffer, in place: the
     whole n x n matrix and its temporaries (72 MB each at 3,000 points) left the cache at
-    every operation (docs/hierarchy.md, "Speed")."""
-    x = np.asarray(points, dtype=np.float64)
+    every operation (docs/hierarchy.md, "Speed"). The matrix products run on one BLAS
+    thread whatever the process allows (`artic infer-hierarchy` runs with one already;
+    an evaluation or a search in one process did not): with an inner dimension of 3 a
+    second thread had nothing to share, and beside another job on two cores it made the
+    mean shift of 2,000 votes twice as slow (0.69 against 0.36 s, pinned kernels)."""
+    with _blas().limit(limits=1, user_api="blas"):
+        return _seek_modes(np.asarray(points, dtype=np.float64), bandwidth, iterations)
+
+
+@functools.cache
+def _blas() -> Any:
+    """threadpoolctl's controller of the loaded libraries (found once: ~4 ms each time)."""
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
+
+
+def _seek_modes(x: NDArray[np.float64], bandwidth: float, iterations: int) -> NDArray[np.float64]:
+    """`seek_modes` in the caller's thread settings."""
     y = x.copy()
     xx = (x * x).sum(1)
     xt = np.ascontiguousarray(x.T)
