@@ -22,10 +22,10 @@ from box_clouds import box_cloud
 from fresh_python import in_fresh_python, loaded_after, loaded_code
 
 #: loaded only by the step that uses them: the labeller (torch_geometric), the joint axes
-#: and URDF meshes (trimesh, which brings scipy.optimize), hierarchy.png (matplotlib)
-STEP_LIBRARIES = ("torch_geometric", "trimesh", "matplotlib", "scipy.optimize")
-#: never needed by these commands
-OTHER_LIBRARIES = ("open3d", "pybullet", "hydra", "omegaconf", "sympy", "pandas")
+#: and URDF meshes (trimesh, which brings scipy.optimize)
+STEP_LIBRARIES = ("torch_geometric", "trimesh", "scipy.optimize")
+#: never needed by these commands (hierarchy.png is drawn with Pillow)
+OTHER_LIBRARIES = ("open3d", "pybullet", "hydra", "omegaconf", "sympy", "pandas", "matplotlib")
 
 
 def test_the_cli_entry_point_imports_no_numerical_library() -> None:
@@ -60,8 +60,8 @@ def test_a_cached_labeller_spares_infer_hierarchy_the_pyg_import(
 ) -> None:
     """The labeller runs as its compiled program (artic.hierarchy.compiled) once that is
     cached: the whole command then loads neither torch_geometric nor torch._dynamo
-    (seconds of import, docs/hierarchy.md "Speed"), nor pyplot (hierarchy.png is drawn on
-    a bare Agg Figure)."""
+    (seconds of import, docs/hierarchy.md "Speed"), nor matplotlib (hierarchy.png is drawn
+    with Pillow)."""
     # a cache of its own: other tests' models have the same bytes, so the same program
     monkeypatch.setenv("ARTIC_CACHE", str(tmp_path / "cache"))
     seg, lab = save_models(tmp_path / "models")
@@ -69,7 +69,7 @@ def test_a_cached_labeller_spares_infer_hierarchy_the_pyg_import(
     scan = tmp_path / "scan.ply"
     write_ply(scan, points)
     argv = ["-q", "infer-hierarchy", str(scan), "--segmenter", str(seg), "--labeller", str(lab)]
-    heavy = ("torch_geometric", "torch._dynamo", "matplotlib.pyplot")
+    heavy = ("torch_geometric", "torch._dynamo", "matplotlib")
     code = WHOLE.replace("LOADED", loaded_code(heavy).strip())
     first = in_fresh_python(code.replace("ARGV", repr([*argv, "--out", str(tmp_path / "a")])))
     assert "torch_geometric" in first  # type: ignore[operator]  # compiled, into the cache
