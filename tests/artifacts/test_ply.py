@@ -188,7 +188,11 @@ GOOD_HEADER = (
             "end_header\n0 0\n",
             "no z property",
         ),
-        ("short.ply", GOOD_HEADER + "end_header\n0 0 0\n", "truncated"),
+        (
+            "short.ply",
+            GOOD_HEADER + "end_header\n0 0 0\n",
+            r"truncated \(its header declares 2 rows of element 'vertex'\)",
+        ),
         ("words.ply", GOOD_HEADER + "end_header\n0 0 0\n0 zero 0\n", "row 2, property 'y'"),
         ("long.ply", GOOD_HEADER + "end_header\n0 0 0\n0 0 0 0\n", "row 2: expected end-of-line"),
         (

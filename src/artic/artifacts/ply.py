@@ -181,7 +181,11 @@ def _parse(path: Path) -> PlyData:
         name = err.element.name if err.element is not None else "?"
         if "early end-of-file" in err.message and err.element is not None:
             count = err.element.count
-            raise InputError(f"{path}: PLY body is truncated (expected {count} {name}s)") from None
+            rows = "row" if count == 1 else "rows"
+            raise InputError(
+                f"{path}: PLY body is truncated (its header declares {count} {rows} of element "
+                f"'{name}')"
+            ) from None
         where = f"element '{name}'"
         where += f", row {err.row + 1}" if err.row is not None else ""
         where += f", property '{err.prop.name}'" if err.prop is not None else ""
