@@ -26,14 +26,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from artic.artifacts.scan_dataset import ScanDataset
+from artic.artifacts.scan_dataset import KINDS, ScanDataset
 from artic.errors import InputError
 from artic.evaluation.hierarchy_report import table_rows
 from artic.hierarchy.config import HierarchyEvaluateConfig
 from artic.hierarchy.evaluate import evaluate_rows, evaluation_config
 from artic.hierarchy.models import load_labeller, load_segmenter
-
-KINDS = ("clean", "noisy")
 
 
 def main() -> None:

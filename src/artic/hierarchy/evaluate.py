@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from artic.artifacts.scan_dataset import KINDS
 from artic.evaluation.hierarchy import hierarchy_counts, match_parts
 from artic.evaluation.hierarchy_report import COUNTS
 from artic.evaluation.segmentation import motion_type_accuracy, object_detections
@@ -21,13 +22,13 @@ from artic.hierarchy.canonical import YawConfig, canonical_yaw, rotate_z
 from artic.hierarchy.config import HierarchyEvaluateConfig
 from artic.hierarchy.fit_labeller import restrict_tree
 from artic.hierarchy.gnn import Labeller
-from artic.hierarchy.infer import HierarchyConfig, build_hierarchy, segment_scan
+from artic.hierarchy.infer import MAX_POINTS, HierarchyConfig, build_hierarchy, segment_scan
+from artic.hierarchy.models import LoadedLabeller, LoadedSegmenter, hierarchy_config
 from artic.hierarchy.segmentation import PartSegmentationNet
 from artic.objects.tree import KinematicTree
 
 if TYPE_CHECKING:
     from artic.artifacts.scan_dataset import ScanDataset, ScanRow
-    from artic.hierarchy.models import LoadedLabeller, LoadedSegmenter
 
 
 def _turned_and_recovered(
@@ -99,9 +100,6 @@ def evaluation_config(
     """The settings `artic evaluate hierarchy` runs the models with: theirs
     (`models.hierarchy_config`), no axis estimate, the object frame (`evaluate_scan` turns
     the scan itself with opts.yaw) and opts' motion evidence."""
-    from artic.hierarchy.infer import MAX_POINTS
-    from artic.hierarchy.models import hierarchy_config
-
     cfg = hierarchy_config(segmenter, labeller, MAX_POINTS)
     return replace(cfg, estimate_axes=False, yaw="none", motion_evidence=opts.motion_evidence)
 
@@ -122,7 +120,7 @@ def evaluate_rows(
     for row in rows:
         cloud, tree = ds.cloud(row), ds.tree(row.object_id)
         assert cloud.part_id is not None and cloud.motion_type is not None
-        kind = ("clean", "noisy").index(row.kind)
+        kind = KINDS.index(row.kind)
         rng = np.random.default_rng([seed, row.object_id, row.pose, kind])
         record = evaluate_scan(cloud.points, cloud.part_id, cloud.motion_type, tree,
                                segmenter, labeller, cfg, opts, rng)  # fmt: skip
