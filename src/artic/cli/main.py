@@ -333,8 +333,9 @@ def infer_hierarchy_command(
     The scan: metres (or --scale), z up, its front (doors, drawers) facing
     any direction. --yaw canonical (default): its yaw is estimated from
     its vertical planes, the networks work in artic's object frame (front
-    towards -x), axes and outputs are in the scan's frame. --yaw none: the
-    scan is already in the object frame.
+    towards -x), axes and outputs are in the scan's frame. A swivelling
+    office chair's front is taken as the side its scan was taken from.
+    --yaw none: the scan is already in the object frame.
 
     Example: artic infer-hierarchy scan.ply --out scan_hierarchy
     """
