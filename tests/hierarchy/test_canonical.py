@@ -7,6 +7,7 @@ import dataclasses
 import json
 import math
 import sys
+import typing
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from artic.errors import InputError
 from artic.hierarchy.canonical import (
     FRONT_WEIGHTS,
     MIN_POINTS,
+    PROFILE_WEIGHTS,
     YawConfig,
     canonical_yaw,
     fit_front_weights,
@@ -98,11 +100,15 @@ def chair(swivel_deg: float, n: int = 6000, seed: int = 0) -> np.ndarray:
 
 
 @pytest.mark.parametrize("swivel_deg", (0.0, 27.0, -100.0))
-def test_an_office_chair_is_aligned_by_its_legs(swivel_deg: float) -> None:
-    """The office chair's yaw step (`yaw_config("office_chair")`) reads the planes of its
-    legs; the default settings read the seat's, which swivels."""
+def test_the_yaw_settings_and_an_office_chair_aligned_by_its_legs(swivel_deg: float) -> None:
+    """Each category's yaw settings (`yaw_config`) and the weights they name; the office
+    chair's yaw step reads the planes of its legs, the default settings the seat's, which
+    swivels."""
     settings = yaw_config("office_chair")
     assert settings.profile == "office_chair" and yaw_config("storage_furniture") == YawConfig()
+    assert yaw_config("lamp") == YawConfig(profile="lamp")
+    assert set(PROFILE_WEIGHTS) == set(typing.get_args(typing.get_type_hints(YawConfig)["profile"]))
+    assert all(w.shape == FRONT_WEIGHTS.shape for w in PROFILE_WEIGHTS.values())
     points = chair(swivel_deg)
     for yaw_deg in (12.0, -75.0, 160.0):
         turned = rotate_z(points, math.radians(yaw_deg))

@@ -27,7 +27,8 @@ in the object frame and `rotate_z(results, yaw)` brings points, axes and origins
    over the four sides fitted on artic's training scans of a category
    (`scripts/fit_front_weights.py`), so `front_confidence` is the softmax probability of
    the chosen side. Where the geometry says nothing about the front (a closed box), it
-   is a guess; lamps use storage furniture's weights (none were fitted for them).
+   is a guess. Storage furniture's weights are the default; office chairs and lamps have
+   their own (`CATEGORY_YAW`), which find the side their scans were taken from.
 
 Office chairs (`CATEGORY_YAW`, `yaw_config`): the seat and back swivel, so step 1 reads
 only the legs (the lowest `plane_band` of the height), and step 2 uses weights fitted on
@@ -87,14 +88,17 @@ class YawConfig:
     #: (1: all of them; an office chair's 0.12: its legs, since its seat swivels)
     plane_band: float = 1.0
     #: whose fitted weights choose the front among the four sides (`PROFILE_WEIGHTS`)
-    profile: Literal["storage_furniture", "office_chair"] = "storage_furniture"
+    profile: Literal["storage_furniture", "office_chair", "lamp"] = "storage_furniture"
 
 
 #: the settings of the yaw step per category, where they differ from `YawConfig()`: an
 #: office chair's legs are its only planes that stay in the object frame's axes (its
 #: seat and back swivel), and its front is the side its scan was taken from, which its
 #: own weights tell (docs/hierarchy.md)
-CATEGORY_YAW = {"office_chair": YawConfig(plane_band=0.12, profile="office_chair")}
+CATEGORY_YAW = {
+    "office_chair": YawConfig(plane_band=0.12, profile="office_chair"),
+    "lamp": YawConfig(profile="lamp"),
+}
 
 
 def yaw_config(category: str) -> YawConfig:
@@ -265,7 +269,7 @@ FRONT_WEIGHTS = np.array(
 )
 
 #: the same fitted on the office chair's noisy training scans (its settings: the planes
-#: of its legs), 6 poses of each of its 200 training objects taken with the Kinect and
+#: of its legs), 6 poses of each of its 180 training objects taken with the Kinect and
 #: again with its 128-pixel camera (`camera=kinect_v1_128`), each turned by a random yaw;
 #: their front is the side they were taken from (`scripts/fit_front_weights.py`;
 #: docs/hierarchy.md, "Scan frame and yaw")
@@ -278,8 +282,24 @@ CHAIR_FRONT_WEIGHTS = np.array(
     ]
 )
 
+#: the same fitted on the lamp's noisy training scans, 6 poses of each of its 180 training
+#: objects taken with the Kinect and with its 128-pixel camera, each turned by a random
+#: yaw: a lamp's front is the side it was scanned from too (docs/hierarchy.md)
+LAMP_FRONT_WEIGHTS = np.array(
+    [
+        [-31.79, 18.83, -0.2677, 2.462, -0.5246, -3.384, -5.616, 21.18],
+        [-42.45, -36.43, -8.272, -0.143, 34.41, 17.26, 15.8, -5.709],
+        [133.2, -30.3, 17.69, 4.487, -9.806, 11.61, 20.73, -19.76],
+        [51.41, -35.23, 2.16, -6.057, 8.551, -1.001, -2.054, -15.86],
+    ]
+)
+
 #: `YawConfig.profile` -> its weights
-PROFILE_WEIGHTS = {"storage_furniture": FRONT_WEIGHTS, "office_chair": CHAIR_FRONT_WEIGHTS}
+PROFILE_WEIGHTS = {
+    "storage_furniture": FRONT_WEIGHTS,
+    "office_chair": CHAIR_FRONT_WEIGHTS,
+    "lamp": LAMP_FRONT_WEIGHTS,
+}
 
 
 def side_features(
