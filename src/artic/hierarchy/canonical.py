@@ -93,8 +93,8 @@ class YawConfig:
 
 #: the settings of the yaw step per category, where they differ from `YawConfig()`: an
 #: office chair's legs are its only planes that stay in the object frame's axes (its
-#: seat and back swivel), and its front is the side its scan was taken from, which its
-#: own weights tell (docs/hierarchy.md)
+#: seat and back swivel); a chair's and a lamp's front is the side the scan was taken
+#: from, which their own weights tell (docs/hierarchy.md)
 CATEGORY_YAW = {
     "office_chair": YawConfig(plane_band=0.12, profile="office_chair"),
     "lamp": YawConfig(profile="lamp"),
