@@ -37,6 +37,7 @@ from artic.hierarchy.segmentation import InferenceConfig, PartSegmentationNet
 from artic.objects.tree import JointAxis, KinematicTree
 from box_clouds import box_surface
 from cli_runner import run_cli
+from tiny_scans import tiny_hierarchy_scans
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "cli"))
 from test_infer_hierarchy import save_models, tiny_labeller, tiny_segmenter
@@ -121,16 +122,14 @@ def test_the_yaw_settings_and_an_office_chair_aligned_by_its_legs(swivel_deg: fl
 
 @pytest.mark.parametrize("camera", ("kinect_v1", "kinect_v1_128"))
 def test_an_office_chair_scan_comes_back_to_the_side_it_was_taken_from(
-    tmp_path: Path, camera: str
+    tmp_path: Path, tmp_path_factory: pytest.TempPathFactory, camera: str
 ) -> None:
     """A swivelling chair's legs do not say which side is its front, its scan does: the
     chair's weights turn a noisy scan (views within 70 degrees of the object frame's -x,
     by the real stages) back to that frame, with the full Kinect or its 128-pixel camera;
     storage furniture's weights do not."""
-    objects, scans = tmp_path / "objects", tmp_path / "scans"
-    code, _, err = run_cli("generate-dataset", "debug=tiny", "dataset=hierarchy",
-                           "category=office_chair", f"out={objects}")  # fmt: skip
-    assert code == 0, err
+    objects = tiny_hierarchy_scans(tmp_path_factory, "office_chair").objects
+    scans = tmp_path / "scans"
     code, _, err = run_cli("render-depth", "render=scan", "debug=tiny", f"camera={camera}",
                            "render.configurations=2", "render.preview_images=0",
                            f"dataset={objects}", f"out={scans}")  # fmt: skip
